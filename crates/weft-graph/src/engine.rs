@@ -1,0 +1,770 @@
+//! The evaluator: lazy pull, pushed dirtiness, per-node caches, stateful checkpoints.
+//!
+//! Invariants:
+//! - Slots are stored in a topological order: every input of slot `n` comes from a slot `< n`.
+//! - A slot's cache is valid for a context when the slot is not dirty and either it is
+//!   effectively static (nothing upstream depends on time) or the cache was made at that
+//!   context. Dirtiness is pushed to every downstream slot when a parameter or input changes.
+//! - A stateful slot's checkpoints are the states at frames `start..=k` computed with the
+//!   current upstream; any upstream change drops them all (every frame after the start depends
+//!   on every input).
+//! - Evaluation is iterative over the needed set, so deep chains do not grow the call stack;
+//!   only lazy-input and stateful nodes pull recursively, one level per such node.
+
+use crate::diag::{Diagnostic, nearest};
+use crate::node::{EvalCx, EvalError, Kernel, NodeError};
+use crate::params::{Params, check_param};
+use crate::registry::{Factory, Registry};
+use crate::spec::{NodeSpec, TimeClass};
+use crate::value::Value;
+use serde::Serialize;
+use std::any::TypeId;
+use std::collections::{BTreeMap, HashMap};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use xxhash_rust::xxh3::Xxh3;
+
+/// Where in time a value is asked for.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Context {
+    /// Frame number.
+    pub frame: i64,
+    /// Frames per second (time = frame / fps).
+    pub fps: f64,
+}
+
+impl Context {
+    /// Frame `frame` at 24 fps.
+    pub fn new(frame: i64) -> Self {
+        Context { frame, fps: 24.0 }
+    }
+    /// Frame `frame` at `fps`.
+    pub fn at(frame: i64, fps: f64) -> Self {
+        Context { frame, fps }
+    }
+    /// Time in seconds.
+    pub fn time(&self) -> f64 {
+        self.frame as f64 / self.fps
+    }
+    fn with_frame(self, frame: i64) -> Self {
+        Context { frame, ..self }
+    }
+}
+
+/// Evaluation counters and time of one node.
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct NodeStats {
+    /// Times the node computed (a stateful node counts one per pull that was not cached).
+    pub evaluations: u64,
+    /// Times a cached output was returned instead.
+    pub cache_hits: u64,
+    /// Stateful nodes: frame steps taken.
+    pub steps: u64,
+    /// Time spent in the node itself, excluding upstream nodes it pulled.
+    pub seconds: f64,
+}
+
+/// One row of [`Graph::stats`].
+#[derive(Clone, Debug, Serialize)]
+pub struct NodeReport {
+    /// Node id.
+    pub node: String,
+    /// Node type.
+    #[serde(rename = "type")]
+    pub type_name: String,
+    /// Counters.
+    #[serde(flatten)]
+    pub stats: NodeStats,
+    /// The node's own report (iterations, residuals, cache files), if it keeps one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub details: Option<serde_json::Value>,
+}
+
+/// A warning raised while running.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunWarning {
+    /// Node id.
+    pub node: String,
+    /// Frame, for time-dependent nodes.
+    pub frame: Option<i64>,
+    /// What happened.
+    pub message: String,
+}
+
+struct Cached {
+    ctx: Context,
+    outputs: Vec<Value>,
+}
+
+pub(crate) struct Slot {
+    pub id: String,
+    pub spec: Arc<NodeSpec>,
+    pub params: Arc<Params>,
+    pub factory: Option<Factory>,
+    pub kernel: Option<Kernel>,
+    /// Source slots (graph inputs) hold their value here.
+    pub source: Option<Value>,
+    /// Per input port, the connected (slot, output port) pairs.
+    pub inputs: Vec<Vec<(usize, usize)>>,
+    pub input_defaults: Vec<Option<Value>>,
+    pub out_types: Vec<Option<TypeId>>,
+    pub out_type_names: Vec<String>,
+    pub downstream: Vec<usize>,
+    pub eff_static: bool,
+    pub dirty: bool,
+    cache: Option<Cached>,
+    checkpoints: BTreeMap<i64, Value>,
+    ckpt_fps: f64,
+    hash: Option<u128>,
+    /// Hash of a source value or of what the kernel adds.
+    pub external: u128,
+    stats: NodeStats,
+}
+
+impl Slot {
+    pub(crate) fn new(id: String, spec: Arc<NodeSpec>, params: Params) -> Self {
+        let n_in = spec.inputs.len();
+        let n_out = spec.outputs.len();
+        Slot {
+            id,
+            spec,
+            params: Arc::new(params),
+            factory: None,
+            kernel: None,
+            source: None,
+            inputs: vec![Vec::new(); n_in],
+            input_defaults: vec![None; n_in],
+            out_types: vec![None; n_out],
+            out_type_names: vec![String::new(); n_out],
+            downstream: Vec::new(),
+            eff_static: true,
+            dirty: true,
+            cache: None,
+            checkpoints: BTreeMap::new(),
+            ckpt_fps: 0.0,
+            hash: None,
+            external: 0,
+            stats: NodeStats::default(),
+        }
+    }
+}
+
+impl std::fmt::Debug for Graph {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Graph")
+            .field(
+                "nodes",
+                &self.slots.iter().map(|s| s.id.as_str()).collect::<Vec<_>>(),
+            )
+            .field("outputs", &self.outputs.keys().collect::<Vec<_>>())
+            .finish()
+    }
+}
+
+/// A compiled, evaluable graph.
+pub struct Graph {
+    registry: Arc<Registry>,
+    pub(crate) slots: Vec<Slot>,
+    pub(crate) ids: HashMap<String, usize>,
+    pub(crate) outputs: BTreeMap<String, (usize, usize)>,
+    pub(crate) inputs: BTreeMap<String, usize>,
+    warnings: Vec<RunWarning>,
+    timers: Vec<Duration>,
+    mark: Vec<u32>,
+    mark_gen: u32,
+    pub(crate) load_warnings: Vec<Diagnostic>,
+}
+
+fn nonce() -> u128 {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static N: AtomicU64 = AtomicU64::new(1);
+    let t = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_nanos())
+        .unwrap_or(0);
+    (t << 32) ^ ((std::process::id() as u128) << 64) ^ N.fetch_add(1, Ordering::Relaxed) as u128
+}
+
+impl Graph {
+    pub(crate) fn new(registry: Arc<Registry>) -> Self {
+        Graph {
+            registry,
+            slots: Vec::new(),
+            ids: HashMap::new(),
+            outputs: BTreeMap::new(),
+            inputs: BTreeMap::new(),
+            warnings: Vec::new(),
+            timers: Vec::new(),
+            mark: Vec::new(),
+            mark_gen: 0,
+            load_warnings: Vec::new(),
+        }
+    }
+
+    /// Appends a slot; its inputs must refer to earlier slots.
+    pub(crate) fn push_slot(&mut self, slot: Slot) -> usize {
+        let n = self.slots.len();
+        self.ids.insert(slot.id.clone(), n);
+        self.slots.push(slot);
+        n
+    }
+
+    /// Links downstream lists and time dependence once every slot is in.
+    pub(crate) fn finish(&mut self) {
+        for n in 0..self.slots.len() {
+            let srcs: Vec<usize> = self.slots[n]
+                .inputs
+                .iter()
+                .flatten()
+                .map(|&(s, _)| s)
+                .collect();
+            let mut eff_static = self.slots[n].spec.time == TimeClass::Static;
+            for &s in &srcs {
+                debug_assert!(s < n, "slots must be in topological order");
+                eff_static &= self.slots[s].eff_static;
+                if !self.slots[s].downstream.contains(&n) {
+                    self.slots[s].downstream.push(n);
+                }
+            }
+            self.slots[n].eff_static = eff_static;
+        }
+        self.mark = vec![0; self.slots.len()];
+    }
+
+    /// The registry this graph was compiled with.
+    pub fn registry(&self) -> &Registry {
+        &self.registry
+    }
+    pub(crate) fn slot_id(&self, n: usize) -> &str {
+        &self.slots[n].id
+    }
+    pub(crate) fn slot_spec(&self, n: usize) -> &NodeSpec {
+        &self.slots[n].spec
+    }
+    pub(crate) fn input_count(&self, n: usize, port: usize) -> usize {
+        self.slots[n].inputs[port].len()
+    }
+
+    /// Names of the graph's outputs.
+    pub fn output_names(&self) -> impl Iterator<Item = &str> {
+        self.outputs.keys().map(|s| s.as_str())
+    }
+    /// Names of the graph's inputs (settable with [`Graph::set_input`]).
+    pub fn input_names(&self) -> impl Iterator<Item = &str> {
+        self.inputs.keys().map(|s| s.as_str())
+    }
+    /// Node ids in evaluation order.
+    pub fn node_ids(&self) -> impl Iterator<Item = &str> {
+        self.slots.iter().map(|s| s.id.as_str())
+    }
+    /// The spec of a node.
+    pub fn node_spec(&self, id: &str) -> Option<&NodeSpec> {
+        self.ids.get(id).map(|&n| &*self.slots[n].spec)
+    }
+    /// A node's current parameters.
+    pub fn node_params(&self, id: &str) -> Option<&Params> {
+        self.ids.get(id).map(|&n| &*self.slots[n].params)
+    }
+    /// True when no output of the graph depends on time.
+    pub fn is_static(&self) -> bool {
+        self.outputs
+            .values()
+            .all(|&(n, _)| self.slots[n].eff_static)
+    }
+    /// True when the output depends on time.
+    pub fn output_is_time_dependent(&self, output: &str) -> Option<bool> {
+        self.outputs
+            .get(output)
+            .map(|&(n, _)| !self.slots[n].eff_static)
+    }
+    /// The declared type of an output.
+    pub fn output_type(&self, output: &str) -> Option<&str> {
+        self.outputs
+            .get(output)
+            .map(|&(n, p)| self.slots[n].out_type_names[p].as_str())
+    }
+
+    fn valid(&self, n: usize, ctx: &Context) -> bool {
+        let s = &self.slots[n];
+        !s.dirty
+            && s.cache
+                .as_ref()
+                .is_some_and(|c| s.eff_static || c.ctx == *ctx)
+    }
+
+    fn pulls_itself(&self, n: usize) -> bool {
+        let s = &self.slots[n];
+        s.spec.lazy_inputs || s.spec.time == TimeClass::Stateful
+    }
+
+    /// Makes slot `n`'s cache valid at `ctx`, evaluating what it needs and nothing else.
+    fn ensure(&mut self, target: usize, ctx: Context) -> Result<(), EvalError> {
+        if self.valid(target, &ctx) {
+            self.slots[target].stats.cache_hits += 1;
+            return Ok(());
+        }
+        self.mark_gen = self.mark_gen.wrapping_add(1);
+        let generation = self.mark_gen;
+        let mut need = Vec::new();
+        let mut stack = vec![target];
+        while let Some(n) = stack.pop() {
+            if self.mark[n] == generation {
+                continue;
+            }
+            self.mark[n] = generation;
+            if self.valid(n, &ctx) {
+                continue;
+            }
+            need.push(n);
+            if !self.pulls_itself(n) {
+                for &(s, _) in self.slots[n].inputs.iter().flatten() {
+                    if self.mark[s] != generation {
+                        stack.push(s);
+                    }
+                }
+            }
+        }
+        // Ascending index is a topological order, so every input is ready before its reader.
+        need.sort_unstable();
+        for n in need {
+            if !self.valid(n, &ctx) {
+                self.evaluate(n, ctx)?;
+            }
+        }
+        Ok(())
+    }
+
+    pub(crate) fn read_input(
+        &mut self,
+        n: usize,
+        port: usize,
+        k: usize,
+        ctx: Context,
+    ) -> Result<Option<Value>, NodeError> {
+        let Some(&(src, p)) = self.slots[n].inputs[port].get(k) else {
+            return Ok(self.slots[n].input_defaults[port].clone());
+        };
+        self.ensure(src, ctx)
+            .map_err(|e| NodeError::Upstream(Box::new(e)))?;
+        Ok(self.slots[src].cache.as_ref().map(|c| c.outputs[p].clone()))
+    }
+
+    fn cx(&mut self, n: usize, ctx: Context) -> EvalCx<'_> {
+        let params = self.slots[n].params.clone();
+        let outputs = vec![None; self.slots[n].spec.outputs.len()];
+        EvalCx {
+            graph: self,
+            node: n,
+            ctx,
+            params,
+            outputs,
+        }
+    }
+
+    fn evaluate(&mut self, n: usize, ctx: Context) -> Result<(), EvalError> {
+        let t0 = Instant::now();
+        self.timers.push(Duration::ZERO);
+        let result: Result<Vec<Option<Value>>, (NodeError, i64)> = if self.slots[n].kernel.is_none()
+        {
+            match &self.slots[n].source {
+                Some(v) => Ok(vec![Some(v.clone())]),
+                None => Err((
+                    NodeError::Failed("no value was given for this input".into()),
+                    ctx.frame,
+                )),
+            }
+        } else {
+            let mut kernel = self.slots[n]
+                .kernel
+                .take()
+                .expect("non-source slots have a kernel");
+            let r = match &mut kernel {
+                Kernel::Compute(k) => {
+                    let mut cx = self.cx(n, ctx);
+                    k.compute(&mut cx)
+                        .map(|()| cx.outputs)
+                        .map_err(|e| (e, ctx.frame))
+                }
+                Kernel::Step(k) => self.eval_stateful(n, k.as_mut(), ctx),
+            };
+            self.slots[n].kernel = Some(kernel);
+            r
+        };
+        let child = self.timers.pop().unwrap_or_default();
+        let elapsed = t0.elapsed();
+        if let Some(parent) = self.timers.last_mut() {
+            *parent += elapsed;
+        }
+        let slot = &mut self.slots[n];
+        slot.stats.evaluations += 1;
+        slot.stats.seconds += elapsed.saturating_sub(child).as_secs_f64();
+        let frame = |f: i64, s: &Slot| (!s.eff_static).then_some(f);
+        let outs = match result {
+            Ok(o) => o,
+            Err((NodeError::Upstream(e), _)) => return Err(*e),
+            Err((e, f)) => {
+                return Err(EvalError {
+                    node: slot.id.clone(),
+                    frame: frame(f, slot),
+                    error: Box::new(e),
+                });
+            }
+        };
+        let mut values = Vec::with_capacity(outs.len());
+        for (i, o) in outs.into_iter().enumerate() {
+            let fail = |m: String| EvalError {
+                node: slot.id.clone(),
+                frame: frame(ctx.frame, slot),
+                error: Box::new(NodeError::Failed(m)),
+            };
+            let Some(v) = o else {
+                return Err(fail(format!(
+                    "did not set output '{}'",
+                    slot.spec.outputs[i].name
+                )));
+            };
+            if let Some(t) = slot.out_types[i]
+                && v.payload_type_id() != t
+            {
+                let got = self
+                    .registry
+                    .port_type_by_id(v.payload_type_id())
+                    .map(|p| p.name.clone())
+                    .unwrap_or_else(|| "an unregistered type".into());
+                return Err(fail(format!(
+                    "output '{}' is declared {} but the node produced {got}",
+                    slot.spec.outputs[i].name, slot.out_type_names[i]
+                )));
+            }
+            values.push(v);
+        }
+        slot.cache = Some(Cached {
+            ctx,
+            outputs: values,
+        });
+        slot.dirty = false;
+        Ok(())
+    }
+
+    fn eval_stateful(
+        &mut self,
+        n: usize,
+        k: &mut dyn crate::node::Step,
+        ctx: Context,
+    ) -> Result<Vec<Option<Value>>, (NodeError, i64)> {
+        let start = self.slots[n].params.i64("start_frame");
+        if self.slots[n].ckpt_fps != ctx.fps {
+            self.slots[n].checkpoints.clear();
+            self.slots[n].ckpt_fps = ctx.fps;
+        }
+        // Before the start frame the initial state holds.
+        let f = ctx.frame.max(start);
+        let resume = self.slots[n]
+            .checkpoints
+            .range(start..=f)
+            .next_back()
+            .map(|(a, s)| (*a, s.clone()));
+        let (mut at, mut state) = match resume {
+            Some(r) => r,
+            None => {
+                let mut cx = self.cx(n, ctx.with_frame(start));
+                let s = k.init(&mut cx).map_err(|e| (e, start))?;
+                self.slots[n].checkpoints.insert(start, s.clone());
+                (start, s)
+            }
+        };
+        while at < f {
+            at += 1;
+            let mut cx = self.cx(n, ctx.with_frame(at));
+            state = k.step(&state, &mut cx).map_err(|e| (e, at))?;
+            self.slots[n].checkpoints.insert(at, state.clone());
+            self.slots[n].stats.steps += 1;
+        }
+        let mut cx = self.cx(n, ctx);
+        k.outputs(&state, &mut cx).map_err(|e| (e, ctx.frame))?;
+        Ok(cx.outputs)
+    }
+
+    /// Pushes dirtiness from `n` to everything downstream; drops caches, hashes, checkpoints.
+    fn mark_dirty(&mut self, n: usize) {
+        self.mark_gen = self.mark_gen.wrapping_add(1);
+        let generation = self.mark_gen;
+        let mut stack = vec![n];
+        while let Some(m) = stack.pop() {
+            if self.mark[m] == generation {
+                continue;
+            }
+            self.mark[m] = generation;
+            let s = &mut self.slots[m];
+            s.dirty = true;
+            s.cache = None;
+            s.hash = None;
+            s.checkpoints.clear();
+            stack.extend(s.downstream.iter().copied());
+        }
+    }
+
+    /// Evaluates a graph output at `ctx`, computing only what it depends on.
+    pub fn pull(&mut self, output: &str, ctx: Context) -> Result<Value, EvalError> {
+        let Some(&(n, p)) = self.outputs.get(output) else {
+            let known: Vec<&str> = self.output_names().collect();
+            return Err(EvalError {
+                node: output.to_string(),
+                frame: None,
+                error: Box::new(NodeError::Failed(format!(
+                    "the graph has no output '{output}' (outputs: {})",
+                    known.join(", ")
+                ))),
+            });
+        };
+        self.pull_slot(n, p, ctx)
+    }
+
+    /// Evaluates `node.port` at `ctx`.
+    pub fn pull_port(&mut self, node: &str, port: &str, ctx: Context) -> Result<Value, EvalError> {
+        let fail = |m: String| EvalError {
+            node: node.to_string(),
+            frame: None,
+            error: Box::new(NodeError::Failed(m)),
+        };
+        let &n = self
+            .ids
+            .get(node)
+            .ok_or_else(|| fail("no such node".into()))?;
+        let p = self.slots[n]
+            .spec
+            .output_index(port)
+            .ok_or_else(|| fail(format!("no output '{port}'")))?;
+        self.pull_slot(n, p, ctx)
+    }
+
+    pub(crate) fn pull_slot(
+        &mut self,
+        n: usize,
+        p: usize,
+        ctx: Context,
+    ) -> Result<Value, EvalError> {
+        self.ensure(n, ctx)?;
+        Ok(self.slots[n].cache.as_ref().expect("ensured").outputs[p].clone())
+    }
+
+    /// Changes a parameter (validated as at load) and dirties the node and its downstream.
+    pub fn set_param(
+        &mut self,
+        node: &str,
+        param: &str,
+        value: serde_json::Value,
+    ) -> Result<(), Diagnostic> {
+        let &n = self.ids.get(node).ok_or_else(|| {
+            Diagnostic::error(vec![], "no such node")
+                .node(node)
+                .help(nearest(node, self.ids.keys().map(|s| s.as_str())))
+        })?;
+        let spec = self.slots[n].spec.clone();
+        let ps = spec.param_spec(param).ok_or_else(|| {
+            Diagnostic::error(vec![], "no such parameter")
+                .node(node)
+                .field(format!("param '{param}'"))
+                .help(nearest(param, spec.params.iter().map(|p| p.name.as_str())))
+        })?;
+        let v = check_param(ps, &value).map_err(|m| {
+            Diagnostic::error(vec![], m)
+                .node(node)
+                .field(format!("param '{param}'"))
+        })?;
+        let mut params = (*self.slots[n].params).clone();
+        params.set(param, v);
+        if let Some(f) = self.slots[n].factory.clone() {
+            let k = f(&params).map_err(|m| {
+                Diagnostic::error(vec![], m)
+                    .node(node)
+                    .field(format!("param '{param}'"))
+            })?;
+            self.slots[n].external = k.kernel_hash();
+            self.slots[n].kernel = Some(k);
+        }
+        self.slots[n].params = Arc::new(params);
+        self.mark_dirty(n);
+        Ok(())
+    }
+
+    /// Sets a graph input's value and dirties its downstream.
+    pub fn set_input(&mut self, name: &str, value: Value) -> Result<(), Diagnostic> {
+        let &n = self.inputs.get(name).ok_or_else(|| {
+            Diagnostic::error(vec![], format!("the graph has no input '{name}'"))
+                .help(nearest(name, self.inputs.keys().map(|s| s.as_str())))
+        })?;
+        if let Some(t) = self.slots[n].out_types[0]
+            && value.payload_type_id() != t
+        {
+            return Err(Diagnostic::error(
+                vec![],
+                format!("input '{name}' expects {}", self.slots[n].out_type_names[0]),
+            ));
+        }
+        self.slots[n].external = self.value_hash(&value);
+        self.slots[n].source = Some(value);
+        self.mark_dirty(n);
+        Ok(())
+    }
+
+    /// Gives a graph input its value at load time (a declared default).
+    pub(crate) fn set_input_initial(&mut self, n: usize, v: Value) {
+        self.slots[n].external = self.value_hash(&v);
+        self.slots[n].source = Some(v);
+    }
+
+    /// Warnings found while loading (the graph still compiled).
+    pub fn load_warnings(&self) -> &[Diagnostic] {
+        &self.load_warnings
+    }
+
+    /// Seconds spent so far in each node, in slot order (for per-iteration stage timing).
+    pub(crate) fn seconds_snapshot(&self) -> Vec<f64> {
+        self.slots.iter().map(|s| s.stats.seconds).collect()
+    }
+
+    /// Hash of a value through its port type's codec; a value without one never matches another.
+    pub(crate) fn value_hash(&self, v: &Value) -> u128 {
+        self.registry
+            .port_type_by_id(v.payload_type_id())
+            .and_then(|t| t.encode)
+            .and_then(|enc| enc(v))
+            .map(|b| xxhash_rust::xxh3::xxh3_128(&b))
+            .unwrap_or_else(nonce)
+    }
+
+    /// Hash of the node type, parameters and everything upstream: equal hashes mean equal
+    /// outputs at equal contexts (Gaffer's `hash()` separate from `compute()`).
+    pub(crate) fn structural_hash(&mut self, target: usize) -> u128 {
+        if let Some(h) = self.slots[target].hash {
+            return h;
+        }
+        let mut stack = vec![(target, false)];
+        while let Some((n, ready)) = stack.pop() {
+            if self.slots[n].hash.is_some() {
+                continue;
+            }
+            if !ready {
+                stack.push((n, true));
+                for &(s, _) in self.slots[n].inputs.iter().flatten() {
+                    if self.slots[s].hash.is_none() {
+                        stack.push((s, false));
+                    }
+                }
+                continue;
+            }
+            let s = &self.slots[n];
+            let mut h = Xxh3::new();
+            h.update(s.spec.name.as_bytes());
+            h.update(&[0]);
+            h.update(s.params.canonical().as_bytes());
+            h.update(&s.external.to_le_bytes());
+            for (i, conns) in s.inputs.iter().enumerate() {
+                h.update(&(i as u64).to_le_bytes());
+                for &(src, p) in conns {
+                    h.update(
+                        &self.slots[src]
+                            .hash
+                            .expect("inputs hashed first")
+                            .to_le_bytes(),
+                    );
+                    h.update(&(p as u64).to_le_bytes());
+                }
+                if conns.is_empty()
+                    && let Some(d) = &s.input_defaults[i]
+                {
+                    h.update(&self.value_hash(d).to_le_bytes());
+                }
+            }
+            let d = h.digest128();
+            self.slots[n].hash = Some(d);
+        }
+        self.slots[target].hash.expect("computed")
+    }
+
+    /// Cache key of what is connected to input `port` of `n` at `ctx`.
+    pub(crate) fn input_hash(&mut self, n: usize, port: usize, ctx: Context) -> u128 {
+        let conns = self.slots[n].inputs[port].clone();
+        let mut h = Xxh3::new();
+        for (src, p) in conns {
+            h.update(&self.structural_hash(src).to_le_bytes());
+            h.update(&(p as u64).to_le_bytes());
+            if !self.slots[src].eff_static {
+                h.update(&ctx.frame.to_le_bytes());
+                h.update(&ctx.fps.to_le_bytes());
+            }
+        }
+        h.digest128()
+    }
+
+    pub(crate) fn input_time_dependent(&self, n: usize, port: usize) -> bool {
+        self.slots[n].inputs[port]
+            .iter()
+            .any(|&(s, _)| !self.slots[s].eff_static)
+    }
+
+    pub(crate) fn push_warning(&mut self, n: usize, frame: Option<i64>, message: String) {
+        let w = RunWarning {
+            node: self.slots[n].id.clone(),
+            frame,
+            message,
+        };
+        if !self.warnings.contains(&w) {
+            self.warnings.push(w);
+        }
+    }
+
+    /// Warnings raised since the last call.
+    pub fn take_warnings(&mut self) -> Vec<RunWarning> {
+        std::mem::take(&mut self.warnings)
+    }
+
+    /// Per-node counters and reports, in evaluation order.
+    pub fn stats(&self) -> Vec<NodeReport> {
+        self.slots
+            .iter()
+            .map(|s| NodeReport {
+                node: s.id.clone(),
+                type_name: s.spec.name.clone(),
+                stats: s.stats.clone(),
+                details: s.kernel.as_ref().and_then(|k| k.stats_json()),
+            })
+            .collect()
+    }
+
+    /// Counters of one node.
+    pub fn node_stats(&self, id: &str) -> Option<&NodeStats> {
+        self.ids.get(id).map(|&n| &self.slots[n].stats)
+    }
+
+    /// Evaluation count of one node (0 for unknown ids).
+    pub fn evaluations(&self, id: &str) -> u64 {
+        self.node_stats(id).map_or(0, |s| s.evaluations)
+    }
+
+    /// Zeroes every counter.
+    pub fn reset_stats(&mut self) {
+        for s in &mut self.slots {
+            s.stats = NodeStats::default();
+        }
+    }
+
+    /// Number of stored checkpoints of a stateful node.
+    pub fn checkpoint_frames(&self, id: &str) -> Vec<i64> {
+        self.ids
+            .get(id)
+            .map(|&n| self.slots[n].checkpoints.keys().copied().collect())
+            .unwrap_or_default()
+    }
+
+    /// Drops one node's checkpoints after `frame` (for tests and memory control).
+    pub fn drop_checkpoints_after(&mut self, id: &str, frame: i64) {
+        if let Some(&n) = self.ids.get(id) {
+            let s = &mut self.slots[n];
+            s.checkpoints.retain(|&f, _| f <= frame);
+            s.cache = None;
+            // Downstream caches stay correct: the states that remain are unchanged.
+        }
+    }
+}

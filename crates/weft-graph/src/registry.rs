@@ -1,0 +1,202 @@
+//! The registry of node types and port types, by name.
+
+use crate::diag::nearest;
+use crate::node::Kernel;
+use crate::params::{Params, check_param};
+use crate::spec::{NodeSpec, TypeRef};
+use crate::value::{PortType, builtin_port_types};
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+/// Builds a node's kernel from its validated parameters. An `Err` is reported as a parameter
+/// error at load time (a malformed expression, an unreadable file).
+pub type Factory = Arc<dyn Fn(&Params) -> Result<Kernel, String> + Send + Sync>;
+
+/// A registered node type.
+#[derive(Clone)]
+pub struct NodeType {
+    /// Its spec.
+    pub spec: Arc<NodeSpec>,
+    pub(crate) factory: Factory,
+}
+
+/// Why a registration was refused.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum RegistryError {
+    /// The name is taken.
+    ///
+    /// Registering `"math.add"` twice.
+    #[error("'{0}' is already registered")]
+    Duplicate(String),
+    /// The spec names a port type nobody registered.
+    ///
+    /// An input of type `"mesh"` before the `mesh` port type is registered.
+    #[error("node type '{node}': port '{port}' has unknown type '{ty}'")]
+    UnknownPortType {
+        /// Node type.
+        node: String,
+        /// Port.
+        port: String,
+        /// The unknown type name.
+        ty: String,
+    },
+    /// A default does not satisfy its own spec, or a name is repeated.
+    ///
+    /// A float parameter `dt` with `.gt(0.0)` and default `0.0`.
+    #[error("node type '{node}': {message}")]
+    BadSpec {
+        /// Node type.
+        node: String,
+        /// What is inconsistent.
+        message: String,
+    },
+}
+
+/// Node types and port types by name. Crates outside `weft-graph` register their own (the Rust
+/// side of the plugin API); the registry is then shared read-only by every graph.
+#[derive(Clone)]
+pub struct Registry {
+    types: BTreeMap<String, NodeType>,
+    port_types: BTreeMap<String, PortType>,
+}
+
+impl Default for Registry {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Registry {
+    /// A registry with the built-in port types and the built-in cache nodes.
+    pub fn new() -> Self {
+        let mut r = Registry {
+            types: BTreeMap::new(),
+            port_types: BTreeMap::new(),
+        };
+        for t in builtin_port_types() {
+            r.port_types.insert(t.name.clone(), t);
+        }
+        crate::cache::register(&mut r).expect("built-in cache nodes are consistent");
+        r
+    }
+
+    /// Registers a port type.
+    pub fn register_port_type(&mut self, t: PortType) -> Result<(), RegistryError> {
+        if self.port_types.contains_key(&t.name) || t.name == "any" {
+            return Err(RegistryError::Duplicate(t.name));
+        }
+        self.port_types.insert(t.name.clone(), t);
+        Ok(())
+    }
+
+    /// Registers a node type; its spec is checked for consistency first.
+    pub fn register<F>(&mut self, spec: NodeSpec, factory: F) -> Result<(), RegistryError>
+    where
+        F: Fn(&Params) -> Result<Kernel, String> + Send + Sync + 'static,
+    {
+        self.register_shared(spec, Arc::new(factory))
+    }
+
+    pub(crate) fn register_shared(
+        &mut self,
+        spec: NodeSpec,
+        factory: Factory,
+    ) -> Result<(), RegistryError> {
+        if self.types.contains_key(&spec.name) {
+            return Err(RegistryError::Duplicate(spec.name));
+        }
+        self.check_spec(&spec)?;
+        self.types.insert(
+            spec.name.clone(),
+            NodeType {
+                spec: Arc::new(spec),
+                factory,
+            },
+        );
+        Ok(())
+    }
+
+    pub(crate) fn check_spec(&self, spec: &NodeSpec) -> Result<(), RegistryError> {
+        let bad = |message: String| RegistryError::BadSpec {
+            node: spec.name.clone(),
+            message,
+        };
+        for (what, ports) in [("input", &spec.inputs), ("output", &spec.outputs)] {
+            for (i, p) in ports.iter().enumerate() {
+                if ports[..i].iter().any(|q| q.name == p.name) {
+                    return Err(bad(format!("{what} '{}' declared twice", p.name)));
+                }
+                match &p.ty {
+                    TypeRef::Named(t) if !self.port_types.contains_key(t) => {
+                        return Err(RegistryError::UnknownPortType {
+                            node: spec.name.clone(),
+                            port: p.name.clone(),
+                            ty: t.clone(),
+                        });
+                    }
+                    TypeRef::SameAs(src) if spec.input_index(src).is_none() => {
+                        return Err(bad(format!(
+                            "output '{}' copies the type of unknown input '{src}'",
+                            p.name
+                        )));
+                    }
+                    TypeRef::FromParam(pp) if spec.param_spec(pp).is_none() => {
+                        return Err(bad(format!(
+                            "output '{}' takes its type from unknown param '{pp}'",
+                            p.name
+                        )));
+                    }
+                    _ => {}
+                }
+                if let (Some(d), TypeRef::Named(t)) = (&p.default, &p.ty) {
+                    let conv = self.port_types[t].from_json;
+                    match conv {
+                        Some(f) => f(d)
+                            .map(|_| ())
+                            .map_err(|e| bad(format!("input '{}' default: {e}", p.name)))?,
+                        None => {
+                            return Err(bad(format!(
+                                "input '{}' has a default but type '{t}' has no JSON form",
+                                p.name
+                            )));
+                        }
+                    }
+                }
+            }
+        }
+        for (i, p) in spec.params.iter().enumerate() {
+            if spec.params[..i].iter().any(|q| q.name == p.name) {
+                return Err(bad(format!("param '{}' declared twice", p.name)));
+            }
+            if let Some(d) = &p.default {
+                check_param(p, d).map_err(|e| bad(format!("param '{}' default: {e}", p.name)))?;
+            }
+        }
+        Ok(())
+    }
+
+    /// A node type by name.
+    pub fn node_type(&self, name: &str) -> Option<&NodeType> {
+        self.types.get(name)
+    }
+    /// A port type by name.
+    pub fn port_type(&self, name: &str) -> Option<&PortType> {
+        self.port_types.get(name)
+    }
+    /// Every node spec, sorted by name.
+    pub fn specs(&self) -> impl Iterator<Item = &NodeSpec> {
+        self.types.values().map(|t| &*t.spec)
+    }
+    /// Every port type, sorted by name.
+    pub fn port_types(&self) -> impl Iterator<Item = &PortType> {
+        self.port_types.values()
+    }
+    /// "did you mean …" for an unknown node type name.
+    pub fn suggest(&self, name: &str) -> Option<String> {
+        nearest(name, self.types.keys().map(|s| s.as_str()))
+    }
+    /// The port type whose payload is `id`, if registered.
+    pub(crate) fn port_type_by_id(&self, id: std::any::TypeId) -> Option<&PortType> {
+        self.port_types.values().find(|t| t.type_id == id)
+    }
+}
