@@ -74,9 +74,9 @@ pub fn load_str(
             return Err(fail(vec![d]));
         }
     };
-    let loc = locate::scan(text);
+    let dups = locate::scan(text, false).duplicates;
     let mut d = Vec::new();
-    for (path, line, col) in &loc.duplicates {
+    for (path, line, col) in &dups {
         let what = match path.as_slice() {
             [nodes, id] if nodes == "nodes" => format!("duplicate node id '{id}'"),
             _ => format!(
@@ -94,6 +94,11 @@ pub fn load_str(
     }
     let model = parse_model(&root, &mut d);
     let graph = compile_model(registry, &model, &mut d);
+    let loc = if d.iter().any(|x| x.line.is_none()) {
+        locate::scan(text, true)
+    } else {
+        Default::default()
+    };
     for x in &mut d {
         if x.line.is_none()
             && let Some((l, c)) = loc.find(&x.path)
@@ -459,7 +464,7 @@ pub(crate) fn compile_body(
         let Some((spec, factory)) = env.lookup(&decl.ty) else {
             d.push(
                 Diagnostic::error(
-                    decl.ty_path.clone(),
+                    decl.at(&["type"]),
                     format!("unknown node type '{}'", decl.ty),
                 )
                 .node(id)
@@ -469,28 +474,26 @@ pub(crate) fn compile_body(
         };
         if let (Some(what), TimeClass::Stateful) = (forbid_stateful, spec.time) {
             d.push(Diagnostic::error(
-                decl.ty_path.clone(),
+                decl.at(&["type"]),
                 format!("stateful node type '{}' cannot run inside {what}: its state would restart every iteration", spec.name),
             ).node(id));
         }
         let mut values = BTreeMap::new();
-        for (k, (v, path)) in &decl.params {
+        for (k, v) in &decl.params {
+            let path = || decl.at(&["params", k]);
             match spec.param_spec(k) {
                 None => d.push(
-                    Diagnostic::error(
-                        path.clone(),
-                        format!("'{}' has no such parameter", spec.name),
-                    )
-                    .node(id)
-                    .field(format!("param '{k}'"))
-                    .help(nearest(k, spec.params.iter().map(|p| p.name.as_str()))),
+                    Diagnostic::error(path(), format!("'{}' has no such parameter", spec.name))
+                        .node(id)
+                        .field(format!("param '{k}'"))
+                        .help(nearest(k, spec.params.iter().map(|p| p.name.as_str()))),
                 ),
                 Some(ps) => match check_param(ps, v) {
                     Ok(v) => {
                         values.insert(k.clone(), v);
                     }
                     Err(m) => d.push(
-                        Diagnostic::error(path.clone(), m)
+                        Diagnostic::error(path(), m)
                             .node(id)
                             .field(format!("param '{k}'")),
                     ),
@@ -528,13 +531,14 @@ pub(crate) fn compile_body(
     // Pass 2: connections.
     for i in 0..pre.len() {
         let (id, decl, spec) = (pre[i].id, pre[i].decl, pre[i].spec.clone());
-        for (port, (refs, is_list, path)) in &decl.inputs {
+        for (port, (refs, is_list)) in &decl.inputs {
+            let path = || decl.at(&["inputs", port]);
             let field = format!("input '{port}'");
             let Some(pi) = spec.input_index(port) else {
                 let names: Vec<&str> = spec.inputs.iter().map(|p| p.name.as_str()).collect();
                 d.push(
                     Diagnostic::error(
-                        path.clone(),
+                        path(),
                         format!(
                             "'{}' has no input '{port}' (inputs: {})",
                             spec.name,
@@ -549,7 +553,7 @@ pub(crate) fn compile_body(
             };
             if *is_list && !spec.inputs[pi].multi {
                 d.push(
-                    Diagnostic::error(path.clone(), "takes one connection, got a list")
+                    Diagnostic::error(path(), "takes one connection, got a list")
                         .node(id)
                         .field(field),
                 );
@@ -582,8 +586,8 @@ pub(crate) fn compile_body(
             &pre,
             &by_id,
             sub_inputs,
-            &format!("<output '{name}'>"),
-            "output",
+            "",
+            &format!("output '{name}'"),
             d,
         ) {
             outs.push((name.clone(), src, r));
@@ -599,6 +603,7 @@ pub(crate) fn compile_body(
             }
         }
     }
+    let mut has_cycle = false;
     let order: Vec<usize> = match petgraph::algo::toposort(&dg, None) {
         Ok(o) => o.into_iter().map(|n| dg[n]).collect(),
         Err(_) => {
@@ -612,7 +617,10 @@ pub(crate) fn compile_body(
                     .node(ids[0]),
                 );
             }
-            return None;
+            // Keep checking types in declaration order: an output whose type is inferred from
+            // a source not yet seen stays "any", which never raises a false mismatch.
+            has_cycle = true;
+            (0..pre.len()).collect()
         }
     };
     // Types, in topological order.
@@ -648,7 +656,7 @@ pub(crate) fn compile_body(
                             .decl
                             .inputs
                             .get(&ps.name)
-                            .map(|x| x.2.clone())
+                            .map(|_| p.decl.at(&["inputs", &ps.name]))
                             .unwrap_or_else(|| p.decl.path.clone());
                         d.push(
                             Diagnostic::error(
@@ -686,7 +694,7 @@ pub(crate) fn compile_body(
                             .decl
                             .params
                             .get(pp)
-                            .map(|x| x.1.clone())
+                            .map(|_| p.decl.at(&["params", pp]))
                             .unwrap_or_else(|| p.decl.path.clone());
                         d.push(
                             Diagnostic::error(path, format!("unknown port type '{t}'"))
@@ -703,6 +711,9 @@ pub(crate) fn compile_body(
             };
             out_types[i][k] = t;
         }
+    }
+    if has_cycle {
+        return None;
     }
     // Factories may reject parameter combinations.
     let mut kernels = Vec::with_capacity(pre.len());

@@ -46,8 +46,9 @@ impl Diagnostic {
             path,
         }
     }
+    /// Names the node (an empty id names none: file-level items such as graph outputs).
     pub(crate) fn node(mut self, id: &str) -> Self {
-        self.node = Some(id.to_string());
+        self.node = (!id.is_empty()).then(|| id.to_string());
         self
     }
     pub(crate) fn field(mut self, f: impl Into<String>) -> Self {
@@ -64,6 +65,34 @@ impl Diagnostic {
     }
 }
 
+impl Diagnostic {
+    /// The message with its node and field, without line or severity:
+    /// `node 'solve': param 'dt': must be > 0, got -1`.
+    pub fn describe(&self) -> String {
+        struct D<'a>(&'a Diagnostic);
+        impl fmt::Display for D<'_> {
+            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                self.0.fmt_body(f)
+            }
+        }
+        D(self).to_string()
+    }
+
+    fn fmt_body(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if let Some(n) = &self.node {
+            write!(f, "node '{n}': ")?;
+        }
+        if let Some(p) = &self.field {
+            write!(f, "{p}: ")?;
+        }
+        write!(f, "{}", self.message)?;
+        if let Some(h) = &self.help {
+            write!(f, " ({h})")?;
+        }
+        Ok(())
+    }
+}
+
 impl fmt::Display for Diagnostic {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         if let Some(l) = self.line {
@@ -77,17 +106,7 @@ impl fmt::Display for Diagnostic {
             Severity::Error => write!(f, "error: ")?,
             Severity::Warning => write!(f, "warning: ")?,
         }
-        if let Some(n) = &self.node {
-            write!(f, "node '{n}': ")?;
-        }
-        if let Some(p) = &self.field {
-            write!(f, "{p}: ")?;
-        }
-        write!(f, "{}", self.message)?;
-        if let Some(h) = &self.help {
-            write!(f, " ({h})")?;
-        }
-        Ok(())
+        self.fmt_body(f)
     }
 }
 

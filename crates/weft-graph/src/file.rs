@@ -25,11 +25,19 @@ pub(crate) struct Ref {
 #[derive(Clone, Debug)]
 pub(crate) struct NodeDecl {
     pub ty: String,
-    pub ty_path: Path,
-    /// Input port → connected references (one unless the port is multi).
-    pub inputs: BTreeMap<String, (Vec<Ref>, bool, Path)>,
-    pub params: BTreeMap<String, (Json, Path)>,
+    /// Input port → connected references, and whether they were written as a list.
+    pub inputs: BTreeMap<String, (Vec<Ref>, bool)>,
+    pub params: BTreeMap<String, Json>,
     pub path: Path,
+}
+
+impl NodeDecl {
+    /// The JSON path of something inside this node's declaration (built only for errors).
+    pub fn at(&self, parts: &[&str]) -> Path {
+        let mut v = self.path.clone();
+        v.extend(parts.iter().map(|s| s.to_string()));
+        v
+    }
 }
 
 #[derive(Clone, Debug)]
@@ -188,8 +196,7 @@ fn parse_nodes(v: &Json, path: &Path, d: &mut Vec<Diagnostic>) -> BTreeMap<Strin
         for x in &mut d[before..] {
             x.node = Some(id.clone());
         }
-        let ty_path = p(&np, "type");
-        let Some(ty) = string(no.get("type"), "'type'", &ty_path, d) else {
+        let Some(ty) = string(no.get("type"), "'type'", &p(&np, "type"), d) else {
             if let Some(x) = d.last_mut() {
                 x.node = Some(id.clone());
             }
@@ -203,7 +210,7 @@ fn parse_nodes(v: &Json, path: &Path, d: &mut Vec<Diagnostic>) -> BTreeMap<Strin
                     let pp = p(&ip, port);
                     match rv {
                         Json::String(s) => {
-                            inputs.insert(port.clone(), (vec![Ref { text: s.clone(), path: pp.clone() }], false, pp));
+                            inputs.insert(port.clone(), (vec![Ref { text: s.clone(), path: pp }], false));
                         }
                         Json::Array(a) => {
                             let mut refs = Vec::new();
@@ -218,7 +225,7 @@ fn parse_nodes(v: &Json, path: &Path, d: &mut Vec<Diagnostic>) -> BTreeMap<Strin
                                     ),
                                 }
                             }
-                            inputs.insert(port.clone(), (refs, true, pp));
+                            inputs.insert(port.clone(), (refs, true));
                         }
                         other => d.push(
                             Diagnostic::error(pp, format!("a connection must be a \"node.port\" string or a list of them, got {}", kind(other)))
@@ -236,7 +243,7 @@ fn parse_nodes(v: &Json, path: &Path, d: &mut Vec<Diagnostic>) -> BTreeMap<Strin
             let pp = p(&np, "params");
             if let Some(po) = as_obj(pv, "'params'", &pp, d) {
                 for (k, v) in po {
-                    params.insert(k.clone(), (v.clone(), p(&pp, k)));
+                    params.insert(k.clone(), v.clone());
                 }
             } else if let Some(x) = d.last_mut() {
                 x.node = Some(id.clone());
@@ -246,7 +253,6 @@ fn parse_nodes(v: &Json, path: &Path, d: &mut Vec<Diagnostic>) -> BTreeMap<Strin
             id.clone(),
             NodeDecl {
                 ty,
-                ty_path,
                 inputs,
                 params,
                 path: np,

@@ -35,16 +35,35 @@ struct Scanner<'a> {
     line: usize,
     line_start: usize,
     out: Locations,
+    /// Record every position (slow path, only when a diagnostic needs a line).
+    positions: bool,
+    /// Raw keys seen per open object, one reusable set per nesting depth.
+    seen: Vec<std::collections::HashSet<&'a [u8]>>,
+    depth: usize,
 }
 
-impl Scanner<'_> {
-    fn pos(&self) -> (usize, usize) {
+#[derive(Clone, Copy)]
+enum Item<'a> {
+    Key(&'a [u8]),
+    Index(usize),
+}
+
+fn owned(path: &[Item<'_>]) -> Vec<String> {
+    path.iter()
+        .map(|i| match i {
+            Item::Key(raw) => serde_json::from_slice::<String>(raw).unwrap_or_default(),
+            Item::Index(n) => n.to_string(),
+        })
+        .collect()
+}
+
+impl<'a> Scanner<'a> {
+    fn column(&self, line_start: usize, at: usize) -> usize {
         // Columns count characters, not bytes.
-        let col = String::from_utf8_lossy(&self.b[self.line_start..self.i])
+        String::from_utf8_lossy(&self.b[line_start..at])
             .chars()
             .count()
-            + 1;
-        (self.line, col)
+            + 1
     }
     fn ws(&mut self) {
         while let Some(&c) = self.b.get(self.i) {
@@ -59,7 +78,8 @@ impl Scanner<'_> {
             }
         }
     }
-    fn string(&mut self) -> String {
+    /// Skips a string token, returning its raw bytes (quotes included).
+    fn raw_string(&mut self) -> &'a [u8] {
         let start = self.i;
         self.i += 1;
         while let Some(&c) = self.b.get(self.i) {
@@ -70,20 +90,25 @@ impl Scanner<'_> {
                 _ => {}
             }
         }
-        let raw = &self.b[start..self.i.min(self.b.len())];
-        serde_json::from_slice::<String>(raw).unwrap_or_default()
+        let b: &'a [u8] = self.b;
+        &b[start..self.i.min(b.len())]
     }
-    fn value(&mut self, path: &mut Vec<String>) {
+    fn value(&mut self, path: &mut Vec<Item<'a>>) {
         self.ws();
         match self.b.get(self.i) {
             Some(b'{') => {
                 self.i += 1;
-                let mut seen = std::collections::HashSet::new();
+                if self.seen.len() <= self.depth {
+                    self.seen.push(Default::default());
+                }
+                self.seen[self.depth].clear();
+                self.depth += 1;
                 loop {
                     self.ws();
                     match self.b.get(self.i) {
                         Some(b'}') | None => {
                             self.i += 1;
+                            self.depth -= 1;
                             return;
                         }
                         Some(b',') => {
@@ -92,14 +117,17 @@ impl Scanner<'_> {
                         }
                         _ => {}
                     }
-                    let at = self.pos();
-                    let k = self.string();
-                    path.push(k.clone());
-                    if !seen.insert(k) {
-                        self.out.duplicates.push((path.clone(), at.0, at.1));
-                    } else {
+                    let (line, line_start, at) = (self.line, self.line_start, self.i);
+                    let raw = self.raw_string();
+                    let fresh = self.seen[self.depth - 1].insert(raw);
+                    path.push(Item::Key(raw));
+                    if !fresh {
+                        let col = self.column(line_start, at);
+                        self.out.duplicates.push((owned(path), line, col));
+                    } else if self.positions {
                         // The first occurrence wins; a duplicate's children must not move it.
-                        self.out.map.entry(key(path)).or_insert(at);
+                        let col = self.column(line_start, at);
+                        self.out.map.entry(key(&owned(path))).or_insert((line, col));
                     }
                     self.ws();
                     self.i += 1; // ':'
@@ -123,16 +151,21 @@ impl Scanner<'_> {
                         }
                         _ => {}
                     }
-                    path.push(n.to_string());
-                    let at = self.pos();
-                    self.out.map.entry(key(path)).or_insert(at);
+                    path.push(Item::Index(n));
+                    if self.positions {
+                        let col = self.column(self.line_start, self.i);
+                        self.out
+                            .map
+                            .entry(key(&owned(path)))
+                            .or_insert((self.line, col));
+                    }
                     self.value(path);
                     path.pop();
                     n += 1;
                 }
             }
             Some(b'"') => {
-                self.string();
+                self.raw_string();
             }
             Some(_) => {
                 while let Some(&c) = self.b.get(self.i) {
@@ -147,14 +180,19 @@ impl Scanner<'_> {
     }
 }
 
-/// Scans text that serde_json has already accepted.
-pub(crate) fn scan(text: &str) -> Locations {
+/// Scans text that serde_json has already accepted. With `positions` false only duplicate
+/// keys are found (and located); that pass allocates almost nothing, so it runs on every load,
+/// while the full index is built only when a diagnostic needs a line.
+pub(crate) fn scan(text: &str, positions: bool) -> Locations {
     let mut s = Scanner {
         b: text.as_bytes(),
         i: 0,
         line: 1,
         line_start: 0,
         out: Locations::default(),
+        positions,
+        seen: Vec::new(),
+        depth: 0,
     };
     s.value(&mut Vec::new());
     s.out
@@ -167,7 +205,8 @@ mod tests {
     #[test]
     fn finds_keys_and_duplicates() {
         let text = "{\n  \"nodes\": {\n    \"a\": {\"type\": \"x\"},\n    \"a\": {\"type\": \"y\"}\n  },\n  \"l\": [1,\n 2]\n}";
-        let loc = scan(text);
+        let loc = scan(text, true);
+        assert_eq!(scan(text, false).duplicates, loc.duplicates);
         let p = |s: &[&str]| s.iter().map(|x| x.to_string()).collect::<Vec<_>>();
         assert_eq!(loc.find(&p(&["nodes", "a", "type"])), Some((3, 11)));
         assert_eq!(loc.duplicates, vec![(p(&["nodes", "a"]), 4, 5)]);

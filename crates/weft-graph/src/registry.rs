@@ -195,6 +195,11 @@ impl Registry {
     pub fn suggest(&self, name: &str) -> Option<String> {
         nearest(name, self.types.keys().map(|s| s.as_str()))
     }
+    /// The registered port type of a value's payload.
+    pub fn type_of(&self, v: &crate::value::Value) -> Option<&PortType> {
+        self.port_type_by_id(v.payload_type_id())
+    }
+
     /// The port type whose payload is `id`, if registered.
     pub(crate) fn port_type_by_id(&self, id: std::any::TypeId) -> Option<&PortType> {
         self.port_types.values().find(|t| t.type_id == id)

@@ -1,0 +1,201 @@
+//! Malformed graph files: each problem is a clear error naming the node, the port or parameter
+//! and the line; all problems of a file are reported at once; nothing panics.
+
+mod common;
+use common::*;
+use expect_test::expect;
+use proptest::prelude::*;
+
+#[test]
+fn invalid_json_gives_line_and_column() {
+    let e = load_error("{\"format\": \"weft-graph\",\n \"version\": 1,\n \"nodes\": {\"a\": }\n}");
+    expect![[r#"
+        t.json: 1 error in graph file
+          t.json: line 3, column 17: error: invalid JSON: expected value
+    "#]]
+    .assert_eq(&e);
+}
+
+#[test]
+fn wrong_format_and_unsupported_version() {
+    let e = load_error(r#"{"format": "weft", "version": 2, "nodes": {}, "outputs": {}}"#);
+    assert!(
+        e.contains(r#"line 1, column 2: error: 'format' must be "weft-graph", got "weft""#),
+        "{e}"
+    );
+    assert!(
+        e.contains("unsupported version 2; this build reads version [1]"),
+        "{e}"
+    );
+}
+
+#[test]
+fn unknown_node_type_suggests_the_nearest() {
+    let e = load_error(&file(r#""a": {"type": "math.ad"}"#, r#""x": "a.out""#));
+    assert!(
+        e.contains("node 'a': unknown node type 'math.ad' (did you mean 'math.add'?)"),
+        "{e}"
+    );
+}
+
+#[test]
+fn unknown_port_type_mismatch_and_missing_input() {
+    let e = load_error(&file(
+        r#""x": {"type": "value.float"},
+           "a": {"type": "math.add", "inputs": {"c": "x.out"}},
+           "l": {"type": "vec3.length", "inputs": {"v": "x.out"}},
+           "m": {"type": "vec3.length"},
+           "n": {"type": "math.add", "inputs": {"a": "x.value"}},
+           "o": {"type": "math.add", "inputs": {"a": "nope.out"}}"#,
+        r#""y": "a.out""#,
+    ));
+    assert!(
+        e.contains("node 'a': input 'c': 'math.add' has no input 'c' (inputs: a, b)"),
+        "{e}"
+    );
+    assert!(
+        e.contains("node 'l': input 'v': type mismatch: 'x.out' is float, this input takes vec3"),
+        "{e}"
+    );
+    assert!(
+        e.contains("node 'm': input 'v': missing required input (vec3: vector)"),
+        "{e}"
+    );
+    assert!(
+        e.contains(
+            "node 'n': input 'a': node 'x' (value.float) has no output 'value' (outputs: out)"
+        ),
+        "{e}"
+    );
+    assert!(
+        e.contains("node 'o': input 'a': connection to unknown node 'nope'"),
+        "{e}"
+    );
+}
+
+#[test]
+fn duplicate_ids_and_cycles() {
+    let e = load_error(
+        "{\"format\": \"weft-graph\", \"version\": 1, \"nodes\": {\n\"a\": {\"type\": \"value.float\"},\n\"a\": {\"type\": \"value.int\"}}, \"outputs\": {}}",
+    );
+    assert!(
+        e.contains("line 3, column 1: error: node 'a': duplicate node id 'a'"),
+        "{e}"
+    );
+    let e = load_error(&file(
+        r#""s": {"type": "math.sum", "inputs": {"terms": ["s.out"]}}"#,
+        r#""y": "s.out""#,
+    ));
+    assert!(e.contains("node 's': cycle: s -> s"), "{e}");
+    let e = load_error(&file(
+        r#""a": {"type": "math.add", "inputs": {"a": "c.out"}},
+           "b": {"type": "math.add", "inputs": {"a": "a.out"}},
+           "c": {"type": "math.add", "inputs": {"a": "b.out"}}"#,
+        r#""y": "c.out""#,
+    ));
+    assert!(e.contains("node 'a': cycle: a -> b -> c -> a"), "{e}");
+}
+
+#[test]
+fn parameters_of_the_wrong_type_or_out_of_range() {
+    let e = load_error(&file(
+        r#""a": {"type": "value.float", "params": {"value": "abc"}},
+           "d": {"type": "ode.decay", "params": {"rate": -1, "method": "euler", "substeps": 0, "y00": 1}}"#,
+        r#""y": "d.y""#,
+    ));
+    assert!(
+        e.contains(r#"node 'a': param 'value': expected a number, got "abc""#),
+        "{e}"
+    );
+    assert!(
+        e.contains("node 'd': param 'rate': must be > 0, got -1"),
+        "{e}"
+    );
+    assert!(e.contains(r#"node 'd': param 'method': expected one of ["explicit_euler", "implicit_euler", "rk4", "exact"], got "euler""#), "{e}");
+    assert!(
+        e.contains("node 'd': param 'substeps': must be >= 1, got 0"),
+        "{e}"
+    );
+    assert!(
+        e.contains("node 'd': param 'y00': 'ode.decay' has no such parameter (did you mean 'y0'?)"),
+        "{e}"
+    );
+}
+
+#[test]
+fn unknown_fields_are_errors_with_suggestions() {
+    let e = load_error(
+        r#"{"format": "weft-graph", "version": 1, "nodes": {"a": {"type": "value.float", "paramz": {}}}, "output": {}, "meta": {"free": true}}"#,
+    );
+    assert!(e.contains("node 'a': unknown field 'paramz' in node 'a' (allowed: type, inputs, params, meta) (did you mean 'params'?)"), "{e}");
+    assert!(
+        e.contains("unknown field 'output' in the graph file"),
+        "{e}"
+    );
+    assert!(!e.contains("'meta'"), "meta is free: {e}");
+}
+
+#[test]
+fn every_error_of_a_file_is_reported_at_once_in_line_order() {
+    let text = r#"{
+  "format": "weft-graph",
+  "version": 1,
+  "nodes": {
+    "clock": {"type": "time.frame"},
+    "osc":   {"type": "ode.oscilator"},
+    "sum":   {"type": "math.add", "inputs": {"a": "clock.frame", "q": "clock.time"}},
+    "len":   {"type": "vec3.length"},
+    "dt":    {"type": "value.float", "params": {"value": [1]}},
+    "loop1": {"type": "math.add", "inputs": {"a": "loop2.out"}},
+    "loop2": {"type": "math.add", "inputs": {"a": "loop1.out"}}
+  },
+  "outputs": {"y": "sum.out", "z": "missing.out"}
+}"#;
+    expect![[r#"
+        t.json: 7 errors in graph file
+          t.json: line 6, column 15: error: node 'osc': unknown node type 'ode.oscilator' (did you mean 'ode.oscillator'?)
+          t.json: line 7, column 46: error: node 'sum': input 'a': type mismatch: 'clock.frame' is int, this input takes float
+          t.json: line 7, column 66: error: node 'sum': input 'q': 'math.add' has no input 'q' (inputs: a, b)
+          t.json: line 8, column 5: error: node 'len': input 'v': missing required input (vec3: vector)
+          t.json: line 9, column 49: error: node 'dt': param 'value': expected a number, got [1]
+          t.json: line 10, column 5: error: node 'loop1': cycle: loop1 -> loop2 -> loop1
+          t.json: line 13, column 31: error: output 'z': connection to unknown node 'missing'
+    "#]]
+    .assert_eq(&load_error(text));
+}
+
+#[test]
+fn a_file_that_cannot_be_read_says_so() {
+    let e = weft::graph::load_path(&registry(), std::path::Path::new("/nonexistent/graph.json"))
+        .unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("/nonexistent/graph.json: 1 error in graph file"),
+        "{e}"
+    );
+    assert!(e.to_string().contains("cannot read file"), "{e}");
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 300, ..ProptestConfig::default() })]
+
+    /// Damaging a valid file anywhere (deleting a span, or splicing in JSON fragments) gives a
+    /// graph or an error, never a panic.
+    #[test]
+    fn damaged_files_never_panic(cut in 0usize..2000, len in 0usize..40, junk in prop::sample::select(vec![
+        "", "null", "1e999", "-1", "[]", "{}", "\"x\"", "\"a.b.c\"", ",", "}", "\"in.y\"", "true", "0.0",
+    ])) {
+        let text = std::fs::read_to_string(graphs_dir().join("stiff_newton.json")).unwrap();
+        let cut = cut.min(text.len());
+        let end = (cut + len).min(text.len());
+        if text.is_char_boundary(cut) && text.is_char_boundary(end) {
+            let damaged = format!("{}{}{}", &text[..cut], junk, &text[end..]);
+            if let Ok(mut g) = weft::graph::load_str(&registry(), &damaged, "d") {
+                let outs: Vec<String> = g.output_names().map(str::to_string).collect();
+                for o in outs {
+                    let _ = g.pull(&o, weft::graph::Context::new(3));
+                }
+            }
+        }
+    }
+}
