@@ -554,7 +554,7 @@ impl Graph {
         node: &str,
         param: &str,
         value: serde_json::Value,
-    ) -> Result<(), Diagnostic> {
+    ) -> Result<(), Box<Diagnostic>> {
         let &n = self.ids.get(node).ok_or_else(|| {
             Diagnostic::error(vec![], "no such node")
                 .node(node)
@@ -589,7 +589,7 @@ impl Graph {
     }
 
     /// Sets a graph input's value and dirties its downstream.
-    pub fn set_input(&mut self, name: &str, value: Value) -> Result<(), Diagnostic> {
+    pub fn set_input(&mut self, name: &str, value: Value) -> Result<(), Box<Diagnostic>> {
         let &n = self.inputs.get(name).ok_or_else(|| {
             Diagnostic::error(vec![], format!("the graph has no input '{name}'"))
                 .help(nearest(name, self.inputs.keys().map(|s| s.as_str())))
@@ -597,10 +597,10 @@ impl Graph {
         if let Some(t) = self.slots[n].out_types[0]
             && value.payload_type_id() != t
         {
-            return Err(Diagnostic::error(
+            return Err(Box::new(Diagnostic::error(
                 vec![],
                 format!("input '{name}' expects {}", self.slots[n].out_type_names[0]),
-            ));
+            )));
         }
         self.slots[n].external = self.value_hash(&value);
         self.slots[n].source = Some(value);

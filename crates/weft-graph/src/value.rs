@@ -167,7 +167,7 @@ fn f64s_to_bytes(xs: &[f64]) -> Vec<u8> {
 }
 
 fn bytes_to_f64s(b: &[u8]) -> Result<Vec<f64>, String> {
-    if b.len() % 8 != 0 {
+    if !b.len().is_multiple_of(8) {
         return Err(format!("{} bytes is not a whole number of f64", b.len()));
     }
     Ok(b.chunks_exact(8)

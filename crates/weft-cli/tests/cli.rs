@@ -1,0 +1,227 @@
+//! The `weft` binary, run as a user runs it.
+
+use expect_test::expect;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn weft(args: &[&str], cwd: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_weft"))
+        .args(args)
+        .current_dir(cwd)
+        .output()
+        .expect("weft runs")
+}
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+#[test]
+fn run_prints_a_table_of_outputs() {
+    let o = weft(&["run", "graphs/hypot_static.json"], &root());
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    expect![[r#"
+        frame	hyp1	hyp2	length	vector
+        0	5.0	13.0	13.92838827718412	[5.0,13.0,0.0]
+    "#]]
+    .assert_eq(&text(&o.stdout));
+}
+
+#[test]
+fn run_with_frames_set_out_and_stats() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("result");
+    let stats = dir.path().join("stats.json");
+    let o = weft(
+        &[
+            "run",
+            "graphs/stiff_newton.json",
+            "--frames",
+            "0..3",
+            "--set",
+            "solve.check.tolerance=1e-14",
+            "--out",
+            out.to_str().unwrap(),
+            "--stats",
+            "--stats-json",
+            stats.to_str().unwrap(),
+        ],
+        &root(),
+    );
+    let err = text(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    // Not a terminal: plain progress lines, one per frame.
+    assert!(
+        err.contains("frame 0 (1/4): ") && err.contains("frame 3 (4/4): "),
+        "{err}"
+    );
+    assert!(err.contains("iterations over 3 frame solves"), "{err}");
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("outputs.json")).unwrap()).unwrap();
+    assert_eq!(j["frames"], serde_json::json!([0, 1, 2, 3]));
+    assert_eq!(j["outputs"]["y"][0], serde_json::json!(1.0));
+    let csv = std::fs::read_to_string(out.join("outputs.csv")).unwrap();
+    assert_eq!(csv.lines().next(), Some("frame,error,exact,residual,y"));
+    assert_eq!(csv.lines().count(), 5);
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    let solve = s["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|n| n["node"] == "solve")
+        .unwrap();
+    assert_eq!(solve["steps"], 3);
+    let frames = solve["details"]["frames"].as_array().unwrap();
+    assert_eq!(frames.len(), 3);
+    let last = frames[2]["iterations"].as_array().unwrap().last().unwrap();
+    assert!(last["residual"].as_f64().unwrap().abs() < 1e-14);
+}
+
+#[test]
+fn bad_set_and_frames_are_usage_errors() {
+    let o = weft(
+        &["run", "graphs/oscillator.json", "--set", "rk4.omega=-1"],
+        &root(),
+    );
+    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(
+        text(&o.stderr),
+        "error: --set rk4.omega=-1: node 'rk4': param 'omega': must be > 0, got -1\n"
+    );
+    let o = weft(
+        &["run", "graphs/oscillator.json", "--frames", "9..2"],
+        &root(),
+    );
+    assert_eq!(o.status.code(), Some(2));
+    let o = weft(
+        &["run", "graphs/oscillator.json", "--output", "x_rk5"],
+        &root(),
+    );
+    assert_eq!(o.status.code(), Some(2));
+    assert!(text(&o.stderr).contains("has no output 'x_rk5'"));
+}
+
+#[test]
+fn a_failing_frame_exits_1_naming_node_and_frame_and_keeps_what_was_computed() {
+    let dir = tempfile::tempdir().unwrap();
+    let g = dir.path().join("g.json");
+    std::fs::write(
+        &g,
+        r#"{"format": "weft-graph", "version": 1, "nodes": {
+            "clock": {"type": "time.frame"},
+            "d": {"type": "math.expr", "params": {"expr": "1 / (3 - x)"}, "inputs": {"x": "clock.time"}}},
+            "outputs": {"y": "d.out"}}"#,
+    )
+    .unwrap();
+    let out = dir.path().join("o");
+    let o = weft(
+        &[
+            "run",
+            "g.json",
+            "--fps",
+            "1",
+            "--frames",
+            "0..5",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(1));
+    let err = text(&o.stderr);
+    assert!(
+        err.contains("error: node 'd' at frame 3: formula gave inf"),
+        "{err}"
+    );
+    assert!(
+        err.contains("frames 0..2 completed before the failure"),
+        "{err}"
+    );
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("outputs.json")).unwrap()).unwrap();
+    assert_eq!(j["frames"], serde_json::json!([0, 1, 2]));
+}
+
+#[test]
+fn validate_reports_every_error_and_exits_2() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("bad.json"),
+        "{\"format\": \"weft-graph\", \"version\": 1,\n \"nodes\": {\"a\": {\"type\": \"math.ad\"},\n \"b\": {\"type\": \"value.float\", \"params\": {\"value\": true}}},\n \"outputs\": {}}",
+    )
+    .unwrap();
+    let o = weft(&["validate", "bad.json"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    expect![[r#"
+        bad.json: 2 errors in graph file
+          bad.json: warning: the file declares no 'outputs': nothing would be computed
+          bad.json: line 2, column 18: error: node 'a': unknown node type 'math.ad' (did you mean 'math.add'?)
+          bad.json: line 3, column 42: error: node 'b': param 'value': expected a number, got true
+    "#]]
+    .assert_eq(&text(&o.stderr));
+    let o = weft(
+        &[
+            "validate",
+            "graphs/oscillator.json",
+            "graphs/stiff_newton.json",
+        ],
+        &root(),
+    );
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(
+        text(&o.stdout)
+            .contains("ok: graphs/stiff_newton.json (5 nodes; outputs: error, exact, residual, y)")
+    );
+}
+
+#[test]
+fn nodes_documents_the_registry() {
+    let o = weft(&["nodes", "math.below"], &root());
+    expect![[r#"
+        math.below  (static)
+          true when |x| < tolerance (a convergence test)
+          in   x          float — residual or error
+          out  out        bool — |x| < tolerance
+          param tolerance float > 0 = 1e-10 — threshold
+
+    "#]]
+    .assert_eq(&text(&o.stdout));
+    let o = weft(&["nodes", "--json"], &root());
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let types = j["node_types"].as_array().unwrap();
+    assert!(types.len() >= 20, "{}", types.len());
+    // Every parameter has a doc line, every stateful node a start_frame.
+    for t in types {
+        for p in t["params"].as_array().unwrap() {
+            assert!(
+                !p["doc"].as_str().unwrap().is_empty(),
+                "{} {}",
+                t["name"],
+                p["name"]
+            );
+        }
+        if t["time"] == "stateful" {
+            assert!(
+                t["params"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .any(|p| p["name"] == "start_frame")
+            );
+        }
+    }
+}
+
+#[test]
+fn bench_graph_quick_runs() {
+    let o = weft(&["bench", "graph", "--quick"], &root());
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(text(&o.stdout).contains("| clean re-pull, chain | 10000 |"));
+    let o = weft(&["bench", "nope"], &root());
+    assert_eq!(o.status.code(), Some(2));
+}
