@@ -176,6 +176,25 @@ fn a_file_that_cannot_be_read_says_so() {
     assert!(e.to_string().contains("cannot read file"), "{e}");
 }
 
+#[test]
+fn a_non_finite_number_is_reported_where_it_appears() {
+    let mut g = graph(&file(
+        r#""big": {"type": "value.float", "params": {"value": 1e308}},
+           "sum": {"type": "math.add", "inputs": {"a": "big.out", "b": "big.out"}},
+           "v":   {"type": "vec3.make", "inputs": {"x": "sum.out"}},
+           "len": {"type": "vec3.length", "inputs": {"v": "v.out"}}"#,
+        r#""len": "len.out""#,
+    ));
+    let e = g
+        .pull("len", weft::graph::Context::new(0))
+        .unwrap_err()
+        .to_string();
+    assert_eq!(
+        e,
+        "node 'sum': produced inf on output 'out'; a non-finite number is reported where it appears, never passed on"
+    );
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 300, ..ProptestConfig::default() })]
 

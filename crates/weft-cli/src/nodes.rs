@@ -93,5 +93,16 @@ pub fn render(reg: &Registry, json: bool, filter: Option<&str>) -> String {
         }
         out.push('\n');
     }
+    if filter.is_none() {
+        out.push_str("port types\n");
+        for t in reg.port_types() {
+            let disk = if t.encode.is_some() {
+                ""
+            } else {
+                " (not disk-cacheable)"
+            };
+            let _ = writeln!(out, "  {:<10} {}{disk}", t.name, t.doc);
+        }
+    }
     out
 }

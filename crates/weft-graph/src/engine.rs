@@ -175,6 +175,20 @@ pub struct Graph {
     pub(crate) load_warnings: Vec<Diagnostic>,
 }
 
+/// The first non-finite number in a float-valued payload (`float`, `vec3`, `floats`).
+/// Physics types check their own data where they are made.
+fn non_finite(v: &Value) -> Option<f64> {
+    let bad = |x: &f64| !x.is_finite();
+    if let Some(x) = v.get::<f64>() {
+        return bad(x).then_some(*x);
+    }
+    if let Some(a) = v.get::<[f64; 3]>() {
+        return a.iter().copied().find(|x| bad(x));
+    }
+    v.get::<Vec<f64>>()
+        .and_then(|a| a.iter().copied().find(|x| bad(x)))
+}
+
 fn nonce() -> u128 {
     use std::sync::atomic::{AtomicU64, Ordering};
     static N: AtomicU64 = AtomicU64::new(1);
@@ -434,6 +448,12 @@ impl Graph {
                 return Err(fail(format!(
                     "output '{}' is declared {} but the node produced {got}",
                     slot.spec.outputs[i].name, slot.out_type_names[i]
+                )));
+            }
+            if let Some(bad) = non_finite(&v) {
+                return Err(fail(format!(
+                    "produced {bad} on output '{}'; a non-finite number is reported where it appears, never passed on",
+                    slot.spec.outputs[i].name
                 )));
             }
             values.push(v);
