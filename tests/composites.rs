@@ -30,13 +30,7 @@ fn sqrt_graph(max_iterations: u32, on_limit: &str) -> String {
 }
 
 fn frames_report(g: &weft::graph::Graph, node: &str) -> serde_json::Value {
-    g.stats()
-        .into_iter()
-        .find(|r| r.node == node)
-        .unwrap()
-        .details
-        .unwrap()["frames"]
-        .clone()
+    g.node_report(node).unwrap()["frames"].clone()
 }
 
 #[test]
@@ -64,13 +58,7 @@ fn newton_converges_quadratically_to_the_known_root() {
         );
     }
     // Stages that do not depend on the iterate run once; those that do, once per iteration.
-    let inner = &g
-        .stats()
-        .into_iter()
-        .find(|r| r.node == "solve")
-        .unwrap()
-        .details
-        .unwrap()["inner"];
+    let inner = &g.node_report("solve").unwrap()["inner"];
     let count = |id: &str| {
         inner
             .as_array()

@@ -50,13 +50,7 @@ fn a_matching_cache_is_reused_by_the_next_run() {
     let b = run(&mut second);
     assert_eq!(a, b, "bit-identical through the disk round trip");
     assert_eq!(second.evaluations("decay"), 0);
-    let d = second
-        .stats()
-        .into_iter()
-        .find(|r| r.node == "disk")
-        .unwrap()
-        .details
-        .unwrap();
+    let d = second.node_report("disk").unwrap();
     assert_eq!(
         (d["hits"].as_u64(), d["writes"].as_u64()),
         (Some(11), Some(0))
@@ -78,13 +72,7 @@ fn a_stale_cache_is_rewritten() {
     let b = run(&mut changed);
     assert_ne!(a[10], b[10]);
     assert_eq!(f64::from_bits(b[0]), 1.0);
-    let d = changed
-        .stats()
-        .into_iter()
-        .find(|r| r.node == "disk")
-        .unwrap()
-        .details
-        .unwrap();
+    let d = changed.node_report("disk").unwrap();
     assert_eq!(
         (d["hits"].as_u64(), d["rewrites"].as_u64()),
         (Some(0), Some(11))
@@ -107,13 +95,7 @@ fn a_corrupt_frame_is_recomputed_and_no_temporary_files_remain() {
     std::fs::write(&frame5, &bytes[..bytes.len() / 2]).unwrap(); // a torn write by another tool
     let mut g = cached(dir.path());
     assert_eq!(run(&mut g), a);
-    let d = g
-        .stats()
-        .into_iter()
-        .find(|r| r.node == "disk")
-        .unwrap()
-        .details
-        .unwrap();
+    let d = g.node_report("disk").unwrap();
     assert_eq!(
         (d["hits"].as_u64(), d["rewrites"].as_u64()),
         (Some(10), Some(1))

@@ -753,6 +753,13 @@ impl Graph {
             .collect()
     }
 
+    /// A node's own report (`--stats` details): iterations and residuals of an iterating
+    /// composite, hits and writes of a cache. `None` for nodes that keep none.
+    pub fn node_report(&self, id: &str) -> Option<serde_json::Value> {
+        let &n = self.ids.get(id)?;
+        self.slots[n].kernel.as_ref()?.stats_json()
+    }
+
     /// Counters of one node.
     pub fn node_stats(&self, id: &str) -> Option<&NodeStats> {
         self.ids.get(id).map(|&n| &self.slots[n].stats)
