@@ -1,0 +1,266 @@
+//! St. Venant–Kirchhoff membrane on triangles, isotropic or orthotropic (woven cloth).
+//!
+//! With F the 3×2 deformation gradient from the rest triangle's 2-D material frame and
+//! E = ½(FᵀF − I) the Green strain, the energy density per rest area is
+//! ψ = ½(C₁₁E₁₁² + C₂₂E₂₂² + 2C₁₂E₁₁E₂₂ + 4C₃₃E₁₂²), axis 1 the warp direction, axis 2 the weft.
+//! Isotropic plane stress (thickness t, Young's modulus E, Poisson's ratio ν):
+//! C₁₁ = C₂₂ = Et/(1−ν²), C₁₂ = νEt/(1−ν²), C₃₃ = Et/(2(1+ν)) (so ψ = μ E:E + λ̄/2 tr²E,
+//! λ̄ the plane-stress Lamé parameter). Warp, weft and shear scales multiply C₁₁, C₂₂ and C₃₃,
+//! and C₁₂ by √(warp·weft), which keeps the stiffness positive definite for positive scales.
+
+use super::{Element, Local};
+use nalgebra::{Matrix2, Matrix3x2, SMatrix, SVector, Vector2, Vector3};
+
+/// Material constants of a membrane, per unit rest area (thickness folded in) [N/m].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MembraneMaterial {
+    /// C₁₁ (warp).
+    pub c11: f64,
+    /// C₂₂ (weft).
+    pub c22: f64,
+    /// C₁₂ (coupling).
+    pub c12: f64,
+    /// C₃₃ (shear).
+    pub c33: f64,
+}
+
+impl MembraneMaterial {
+    /// Plane-stress constants from Young's modulus [Pa], Poisson's ratio, thickness [m] and
+    /// warp/weft/shear scales (1, 1, 1 for isotropic).
+    pub fn orthotropic(
+        youngs: f64,
+        poisson: f64,
+        thickness: f64,
+        warp: f64,
+        weft: f64,
+        shear: f64,
+    ) -> Self {
+        let et = youngs * thickness;
+        let a = et / (1.0 - poisson * poisson);
+        MembraneMaterial {
+            c11: warp * a,
+            c22: weft * a,
+            c12: (warp * weft).sqrt() * poisson * a,
+            c33: shear * et / (2.0 * (1.0 + poisson)),
+        }
+    }
+    /// ∂ψ/∂E (second Piola–Kirchhoff stress) for a symmetric strain.
+    fn stress(&self, e: &Matrix2<f64>) -> Matrix2<f64> {
+        let s11 = self.c11 * e[(0, 0)] + self.c12 * e[(1, 1)];
+        let s22 = self.c22 * e[(1, 1)] + self.c12 * e[(0, 0)];
+        let s12 = 2.0 * self.c33 * e[(0, 1)];
+        Matrix2::new(s11, s12, s12, s22)
+    }
+    fn density(&self, e: &Matrix2<f64>) -> f64 {
+        let (e11, e22, e12) = (e[(0, 0)], e[(1, 1)], e[(0, 1)]);
+        0.5 * (self.c11 * e11 * e11
+            + self.c22 * e22 * e22
+            + 2.0 * self.c12 * e11 * e22
+            + 4.0 * self.c33 * e12 * e12)
+    }
+}
+
+/// A membrane triangle.
+#[derive(Clone, Debug)]
+pub struct Membrane {
+    /// Vertices.
+    pub v: [u32; 3],
+    /// Rest area [m²].
+    pub area: f64,
+    /// F = Σₐ xₐ wₐᵀ: wₐ from the inverse rest shape matrix.
+    pub w: [Vector2<f64>; 3],
+    /// Material constants.
+    pub material: MembraneMaterial,
+}
+
+/// Why a rest triangle cannot carry a membrane.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("triangle {v:?} has zero rest area ({area:e} m²)")]
+pub struct DegenerateTriangle {
+    /// Its vertices.
+    pub v: [u32; 3],
+    /// Its rest area.
+    pub area: f64,
+}
+
+impl Membrane {
+    /// Builds a triangle from rest positions. The material frame's axis 1 is `warp` projected
+    /// into the triangle's plane (or the first edge when `warp` is normal to it).
+    pub fn new(
+        v: [u32; 3],
+        rest: [Vector3<f64>; 3],
+        warp: Vector3<f64>,
+        material: MembraneMaterial,
+    ) -> Result<Self, DegenerateTriangle> {
+        let (e1, e2) = (rest[1] - rest[0], rest[2] - rest[0]);
+        let n = e1.cross(&e2);
+        let area = 0.5 * n.norm();
+        let scale = e1.norm_squared().max(e2.norm_squared());
+        if !(area > 1e-12 * scale) || !area.is_finite() {
+            return Err(DegenerateTriangle { v, area });
+        }
+        let n = n.normalize();
+        let mut u = warp - n * n.dot(&warp);
+        if u.norm_squared() < 1e-12 * warp.norm_squared().max(1e-300)
+            || !u.iter().all(|c| c.is_finite())
+        {
+            u = e1;
+        }
+        let u = u.normalize();
+        let t = n.cross(&u);
+        let dm = Matrix2::new(e1.dot(&u), e2.dot(&u), e1.dot(&t), e2.dot(&t));
+        let b = dm.try_inverse().ok_or(DegenerateTriangle { v, area })?;
+        // F = [x1 − x0, x2 − x0] B  ⇒  w₁ = row 0 of B, w₂ = row 1, w₀ = −(w₁ + w₂).
+        let w1 = Vector2::new(b[(0, 0)], b[(0, 1)]);
+        let w2 = Vector2::new(b[(1, 0)], b[(1, 1)]);
+        Ok(Membrane {
+            v,
+            area,
+            w: [-(w1 + w2), w1, w2],
+            material,
+        })
+    }
+
+    fn deformation(&self, x: &[Vector3<f64>]) -> Matrix3x2<f64> {
+        let mut f = Matrix3x2::zeros();
+        for a in 0..3 {
+            f += x[self.v[a] as usize] * self.w[a].transpose();
+        }
+        f
+    }
+
+    fn strain(f: &Matrix3x2<f64>) -> Matrix2<f64> {
+        0.5 * (f.transpose() * f - Matrix2::identity())
+    }
+}
+
+impl Element for Membrane {
+    fn vertices(&self) -> &[u32] {
+        &self.v
+    }
+    fn energy(&self, x: &[Vector3<f64>]) -> f64 {
+        self.area * self.material.density(&Self::strain(&self.deformation(x)))
+    }
+    fn eval(&self, x: &[Vector3<f64>], project: bool, out: &mut Local) {
+        let f = self.deformation(x);
+        let e = Self::strain(&f);
+        let s = self.material.stress(&e);
+        let p = f * s; // first Piola–Kirchhoff stress
+        let mut g = SVector::<f64, 9>::zeros();
+        for a in 0..3 {
+            g.fixed_rows_mut::<3>(3 * a)
+                .copy_from(&(self.area * p * self.w[a]));
+        }
+        // Hessian column by column: perturb vertex b along axis i, dF = e_i w_bᵀ,
+        // dE = sym(Fᵀ dF), dP = dF S + F C:dE, column = A [dP w₀; dP w₁; dP w₂].
+        let mut h = SMatrix::<f64, 9, 9>::zeros();
+        for b in 0..3 {
+            for i in 0..3 {
+                let mut df = Matrix3x2::zeros();
+                df.set_row(i, &self.w[b].transpose());
+                let ft_df = f.transpose() * df;
+                let de = 0.5 * (ft_df + ft_df.transpose());
+                let dp = df * s + f * self.material.stress(&de);
+                for a in 0..3 {
+                    h.fixed_view_mut::<3, 1>(3 * a, 3 * b + i)
+                        .copy_from(&(self.area * dp * self.w[a]));
+                }
+            }
+        }
+        let mut h = h;
+        if project {
+            crate::spd::project_psd(&mut h);
+        }
+        out.set::<9>(self.area * self.material.density(&e), &g, &h);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::energy::fd::check;
+
+    fn tri() -> [Vector3<f64>; 3] {
+        [
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(0.1, 0.0, 0.0),
+            Vector3::new(0.03, 0.08, 0.0),
+        ]
+    }
+
+    #[test]
+    fn finite_differences_isotropic_and_orthotropic_stretched_and_compressed() {
+        for mat in [
+            MembraneMaterial::orthotropic(1e5, 0.3, 1e-3, 1.0, 1.0, 1.0),
+            MembraneMaterial::orthotropic(1e5, 0.3, 1e-3, 3.0, 0.5, 0.2),
+        ] {
+            let m = Membrane::new([0, 1, 2], tri(), Vector3::new(1.0, 1.0, 0.0), mat).unwrap();
+            let stretched = vec![
+                Vector3::new(0.0, 0.0, 0.01),
+                Vector3::new(0.12, 0.01, 0.0),
+                Vector3::new(0.02, 0.09, 0.02),
+            ];
+            let compressed = vec![
+                Vector3::new(0.0, 0.0, 0.0),
+                Vector3::new(0.07, 0.01, 0.01),
+                Vector3::new(0.03, 0.05, -0.01),
+            ];
+            check(&m, &stretched, 1e-8, 1e-5);
+            check(&m, &compressed, 1e-8, 1e-5);
+        }
+    }
+
+    #[test]
+    fn rest_state_has_zero_energy_and_rigid_motion_costs_nothing() {
+        let m = Membrane::new(
+            [0, 1, 2],
+            tri(),
+            Vector3::x(),
+            MembraneMaterial::orthotropic(1e5, 0.3, 1e-3, 2.0, 1.0, 1.0),
+        )
+        .unwrap();
+        let r = nalgebra::Rotation3::from_euler_angles(0.4, 0.2, -0.9);
+        let moved: Vec<_> = tri()
+            .iter()
+            .map(|p| r * p + Vector3::new(1.0, 2.0, 3.0))
+            .collect();
+        assert!(m.energy(&tri()) == 0.0);
+        assert!(m.energy(&moved) < 1e-18, "{}", m.energy(&moved));
+    }
+
+    #[test]
+    fn uniaxial_strain_energy_matches_plane_stress_constants() {
+        // Stretch along the warp (x) by a small ε with the weft held: E₁₁ = ε + ε²/2.
+        let mat = MembraneMaterial::orthotropic(2e5, 0.25, 1e-3, 1.0, 1.0, 1.0);
+        let m = Membrane::new([0, 1, 2], tri(), Vector3::x(), mat).unwrap();
+        let eps = 1e-3;
+        let x: Vec<_> = tri()
+            .iter()
+            .map(|p| Vector3::new(p.x * (1.0 + eps), p.y, p.z))
+            .collect();
+        let e11 = eps + 0.5 * eps * eps;
+        let want = m.area * 0.5 * mat.c11 * e11 * e11;
+        assert!(
+            (m.energy(&x) - want).abs() < 1e-12 * want,
+            "{} vs {want}",
+            m.energy(&x)
+        );
+        assert!((mat.c11 - 2e2 / (1.0 - 0.0625)).abs() < 1e-9);
+    }
+
+    #[test]
+    fn degenerate_triangles_are_refused() {
+        let flat = [Vector3::zeros(), Vector3::x(), Vector3::x() * 2.0];
+        let err = Membrane::new(
+            [4, 5, 6],
+            flat,
+            Vector3::x(),
+            MembraneMaterial::orthotropic(1.0, 0.3, 1.0, 1.0, 1.0, 1.0),
+        )
+        .unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "triangle [4, 5, 6] has zero rest area (0e0 m²)"
+        );
+    }
+}
