@@ -183,7 +183,12 @@ fn subgraph_mistakes_are_reported_at_load() {
         r#""osc": {"type": "ode.decay"}, "twice":    {"type": "math.scale""#,
     );
     let e = load_error(&stateful_inside);
-    assert!(e.contains("node 'newton_sqrt/osc': stateful node type 'ode.decay' cannot run inside an iterating subgraph"), "{e}");
+    assert!(
+        e.contains(
+            "node 'newton_sqrt/osc': stateful node type 'ode.decay' cannot run inside a subgraph"
+        ),
+        "{e}"
+    );
 
     let recursive = r#"{"format": "weft-graph", "version": 1,
       "subgraphs": {

@@ -23,6 +23,7 @@ use std::sync::Arc;
 pub(crate) struct LocalType {
     spec: Arc<NodeSpec>,
     factory: Factory,
+    hash: u128,
 }
 
 /// What a body can instance: the registry plus the file's own subgraph types.
@@ -218,13 +219,10 @@ fn local_type(
     d: &mut Vec<Diagnostic>,
 ) -> Option<LocalType> {
     let before = d.len();
-    let forbid = if s.iterate.is_some() {
-        Some("an iterating subgraph")
-    } else if s.step.is_some() {
-        Some("a stepped subgraph")
-    } else {
-        None
-    };
+    // A subgraph's inner graph sees only the current frame's inputs, so state inside it
+    // would restart whenever they change: no stateful node (nor stepped subgraph) inside any
+    // subgraph, at any depth (each body is checked when its own type is built).
+    let forbid = Some("a subgraph");
     for (k, i) in &s.inputs {
         if i.ty != "any" && env.registry.port_type(&i.ty).is_none() {
             let known = env.registry.port_types().map(|t| t.name.as_str());
@@ -235,6 +233,17 @@ fn local_type(
                 )
                 .help(nearest(&i.ty, known)),
             );
+        } else if let Some(j) = &i.default
+            && json_value(&env.registry, &i.ty, j).is_none()
+        {
+            let why = match env.registry.port_type(&i.ty).and_then(|t| t.from_json) {
+                Some(f) => f(j).err().unwrap_or_default(),
+                None => format!("type '{}' has no JSON form", i.ty),
+            };
+            d.push(Diagnostic::error(
+                i.path.clone(),
+                format!("input '{k}': bad default: {why}"),
+            ));
         }
     }
     let outputs: Vec<(String, &Ref)> = s
@@ -255,7 +264,15 @@ fn local_type(
         tag(x);
     }
     let g = g?;
-    let plan = CompositePlan::resolve(name, s, &g, &env.registry, d);
+    // The hash of a subgraph type covers the definitions of the subgraphs it instances, so a
+    // cache downstream notices an edit at any depth.
+    let deps: Vec<u128> = s
+        .nodes
+        .values()
+        .filter_map(|n| env.local.get(&n.ty))
+        .map(|t| t.hash)
+        .collect();
+    let plan = CompositePlan::resolve(name, s, &g, &env.registry, &deps, d);
     let plan = match plan {
         Some(p) if d.len() == before => p,
         _ => {
@@ -269,7 +286,7 @@ fn local_type(
     };
     let time = if s.step.is_some() {
         TimeClass::Stateful
-    } else if g.is_static() {
+    } else if !g.any_time_dependent() {
         TimeClass::Static
     } else {
         TimeClass::Animated
@@ -311,6 +328,7 @@ fn local_type(
             }
         }
     }
+    let hash = plan.hash();
     let plan = Arc::new(plan);
     let env2 = env.clone();
     let decl = Arc::new(s.clone());
@@ -336,6 +354,7 @@ fn local_type(
     Some(LocalType {
         spec: Arc::new(spec),
         factory,
+        hash,
     })
 }
 
@@ -475,7 +494,7 @@ pub(crate) fn compile_body(
         if let (Some(what), TimeClass::Stateful) = (forbid_stateful, spec.time) {
             d.push(Diagnostic::error(
                 decl.at(&["type"]),
-                format!("stateful node type '{}' cannot run inside {what}: its state would restart every iteration", spec.name),
+                format!("stateful node type '{}' cannot run inside {what}: the inner graph sees only the current frame's inputs, so its state would restart whenever they change (use it outside; a stepped subgraph is itself the stateful node)", spec.name),
             ).node(id));
         }
         let mut values = BTreeMap::new();

@@ -46,20 +46,25 @@ fn split(r: &str) -> (String, String) {
 }
 
 impl CompositePlan {
+    /// Hash of the subgraph's definition and of every subgraph it instances.
+    pub(crate) fn hash(&self) -> u128 {
+        self.hash
+    }
+
     /// Checks `iterate` and `step` against the compiled inner graph.
     pub(crate) fn resolve(
         name: &str,
         s: &SubgraphDecl,
         g: &Graph,
         reg: &Registry,
+        deps: &[u128],
         d: &mut Vec<Diagnostic>,
     ) -> Option<CompositePlan> {
         let before = d.len();
         let ref_type = |text: &str| -> Option<String> {
+            // Loop tests and feedback read inner nodes' outputs; a subgraph input never changes
+            // within a frame's loop, so naming one is a mistake (and `in` is not a node).
             let (n, p) = split(text);
-            if n == "in" {
-                return s.inputs.get(&p).map(|i| i.ty.clone());
-            }
             let spec = g.node_spec(&n)?;
             let k = spec.output_index(&p)?;
             g.slots
@@ -140,7 +145,17 @@ impl CompositePlan {
                         path.clone(),
                         format!("step feedback source '{out}' is not an output of the subgraph"),
                     )),
-                    (Some(i), Some(o)) => pairs.push((i, o)),
+                    (Some(i), Some(o)) => {
+                        let ti = s.inputs[inp].ty.as_str();
+                        let to = g.output_type(out).unwrap_or("any");
+                        if ti != to && ti != "any" && to != "any" {
+                            d.push(Diagnostic::error(
+                                path.clone(),
+                                format!("step feedback: input '{inp}' is {ti} but output '{out}' is {to}"),
+                            ));
+                        }
+                        pairs.push((i, o));
+                    }
                 }
             }
             for (o, name_o) in outputs.iter().enumerate() {
@@ -164,7 +179,12 @@ impl CompositePlan {
         if d.len() > before {
             return None;
         }
-        let hash = xxhash_rust::xxh3::xxh3_128(format!("{name}{s:?}").as_bytes());
+        let mut h = xxhash_rust::xxh3::Xxh3::new();
+        h.update(format!("{name}{s:?}").as_bytes());
+        for dep in deps {
+            h.update(&dep.to_le_bytes());
+        }
+        let hash = h.digest128();
         Some(CompositePlan {
             inputs,
             outputs,

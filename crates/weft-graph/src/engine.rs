@@ -279,6 +279,22 @@ impl Graph {
     pub fn node_params(&self, id: &str) -> Option<&Params> {
         self.ids.get(id).map(|&n| &*self.slots[n].params)
     }
+    /// True when any node (not only those feeding outputs) depends on time: a subgraph whose
+    /// loop test or feedback reads the frame is time-dependent even if its outputs are not.
+    pub(crate) fn any_time_dependent(&self) -> bool {
+        self.slots.iter().any(|s| !s.eff_static)
+    }
+
+    /// A fresh mark generation; on wrap-around the marks are cleared so no stale mark matches.
+    fn next_mark(&mut self) -> u32 {
+        self.mark_gen = self.mark_gen.wrapping_add(1);
+        if self.mark_gen == 0 {
+            self.mark.iter_mut().for_each(|m| *m = 0);
+            self.mark_gen = 1;
+        }
+        self.mark_gen
+    }
+
     /// True when no output of the graph depends on time.
     pub fn is_static(&self) -> bool {
         self.outputs
@@ -317,8 +333,7 @@ impl Graph {
             self.slots[target].stats.cache_hits += 1;
             return Ok(());
         }
-        self.mark_gen = self.mark_gen.wrapping_add(1);
-        let generation = self.mark_gen;
+        let generation = self.next_mark();
         let mut need = Vec::new();
         let mut stack = vec![target];
         while let Some(n) = stack.pop() {
@@ -507,8 +522,7 @@ impl Graph {
 
     /// Pushes dirtiness from `n` to everything downstream; drops caches, hashes, checkpoints.
     fn mark_dirty(&mut self, n: usize) {
-        self.mark_gen = self.mark_gen.wrapping_add(1);
-        let generation = self.mark_gen;
+        let generation = self.next_mark();
         let mut stack = vec![n];
         while let Some(m) = stack.pop() {
             if self.mark[m] == generation {
@@ -587,6 +601,17 @@ impl Graph {
                 .field(format!("param '{param}'"))
                 .help(nearest(param, spec.params.iter().map(|p| p.name.as_str())))
         })?;
+        if spec
+            .outputs
+            .iter()
+            .any(|o| o.ty == crate::spec::TypeRef::FromParam(param.to_string()))
+        {
+            return Err(Box::new(
+                Diagnostic::error(vec![], "sets an output's type, so it can only be given in the graph file (connections were type-checked against it at load)")
+                    .node(node)
+                    .field(format!("param '{param}'")),
+            ));
+        }
         let v = check_param(ps, &value).map_err(|m| {
             Diagnostic::error(vec![], m)
                 .node(node)

@@ -110,8 +110,8 @@ fn range_text(min: &Bound<f64>, max: &Bound<f64>) -> String {
 pub fn check_param(spec: &ParamSpec, v: &serde_json::Value) -> Result<serde_json::Value, String> {
     let got = || {
         let s = v.to_string();
-        if s.len() > 60 {
-            format!("{}…", &s[..57])
+        if s.chars().count() > 60 {
+            format!("{}…", s.chars().take(57).collect::<String>())
         } else {
             s
         }

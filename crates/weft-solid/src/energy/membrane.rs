@@ -96,7 +96,7 @@ impl Membrane {
         let n = e1.cross(&e2);
         let area = 0.5 * n.norm();
         let scale = e1.norm_squared().max(e2.norm_squared());
-        if !(area > 1e-12 * scale) || !area.is_finite() {
+        if area.is_nan() || area <= 1e-12 * scale || !area.is_finite() {
             return Err(DegenerateTriangle { v, area });
         }
         let n = n.normalize();
@@ -167,7 +167,6 @@ impl Element for Membrane {
                 }
             }
         }
-        let mut h = h;
         if project {
             crate::spd::project_psd(&mut h);
         }

@@ -82,6 +82,7 @@ pub(crate) fn gather<const D: usize>(x: &[Vector3<f64>], v: &[u32]) -> SVector<f
 
 /// Finite-difference checks shared by every energy's tests.
 #[cfg(test)]
+#[allow(clippy::needless_range_loop)] // matrix index arithmetic reads clearer than iterators here
 pub(crate) mod fd {
     use super::{Element, Local};
     use nalgebra::Vector3;
