@@ -12,4 +12,9 @@
 #![warn(missing_docs)]
 
 pub mod energy;
+pub mod integrator;
 pub mod spd;
+pub mod system;
+
+pub use integrator::{Integrator, Method, Settings, StepError, StepStats};
+pub use system::{Elements, SolidSystem, State, SystemError};

@@ -1,0 +1,618 @@
+//! Time stepping: implicit Euler by projected Newton, its one-step linearization, and
+//! symplectic Euler for comparison.
+//!
+//! Implicit Euler is the minimizer of the incremental potential
+//! `E(x) = Σᵢ mᵢ/(2h²)‖xᵢ − x̂ᵢ‖² + Σᵢ c mᵢ/(2h)‖xᵢ − x⁰ᵢ‖² + Σₑ Eₑ(x)`,
+//! `x̂ = x⁰ + h v⁰ + h² (g + M⁻¹f)` (the damping term gives the force −c m v with v = (x − x⁰)/h).
+//! Its Hessian, with element Hessians projected to PSD, is SPD whenever every free vertex has
+//! mass, so each Newton direction descends and a backtracking line search on E makes the
+//! iteration converge from any start. The sparsity pattern (3×3 blocks between vertices that
+//! share an element) and the symbolic Cholesky analysis are built once per system; each
+//! iteration only refills values and refactors numerically, into buffers allocated once.
+
+use crate::energy::Local;
+use crate::system::{SolidSystem, State, SystemError};
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::sparse::linalg::cholesky::{SymbolicCholesky, factorize_symbolic_cholesky};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{Conj, MatMut, Par, Side};
+use nalgebra::Vector3;
+use std::time::Instant;
+
+/// How a step is integrated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    /// Symplectic Euler: cheap, conditionally stable (h below ~2/ω_max).
+    Explicit,
+    /// One projected Newton step from x⁰ + h v⁰ (Baraff–Witkin style linearized implicit Euler).
+    Linearized,
+    /// Projected Newton iterated to tolerance: implicit Euler solved exactly.
+    Newton,
+}
+
+/// Step settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Settings {
+    /// Integration method.
+    pub method: Method,
+    /// Newton stops when ‖Δx‖∞ / h, the largest velocity change a further iteration would make,
+    /// is below this [m/s] (for [`Integrator::solve_static`]: ‖Δx‖∞ in metres).
+    pub tolerance: f64,
+    /// Newton iteration limit.
+    pub max_iterations: usize,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            method: Method::Newton,
+            tolerance: 1e-6,
+            max_iterations: 50,
+        }
+    }
+}
+
+/// What one step did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct StepStats {
+    /// Newton iterations (1 for linearized, 0 for explicit).
+    pub iterations: usize,
+    /// ‖Δx‖∞ / h per iteration [m/s].
+    pub residuals: Vec<f64>,
+    /// True when the tolerance was met (always for explicit and linearized).
+    pub converged: bool,
+    /// Step-length halvings in the line search, summed over iterations.
+    pub halvings: usize,
+    /// Seconds assembling gradients and Hessians.
+    pub assembly_seconds: f64,
+    /// Seconds in numeric factorization.
+    pub factor_seconds: f64,
+    /// Seconds in triangular solves.
+    pub solve_seconds: f64,
+}
+
+/// Why a step failed. The state is left as it was before the step.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum StepError {
+    /// The system is inconsistent (see [`SystemError`]).
+    #[error(transparent)]
+    System(#[from] SystemError),
+    /// A NaN or infinity appeared.
+    ///
+    /// Explicit integration of a stiff system with too large a step.
+    #[error(
+        "non-finite values at iteration {iteration} (the step is unstable or the input is degenerate)"
+    )]
+    NonFinite {
+        /// Newton iteration (0 for explicit).
+        iteration: usize,
+    },
+    /// Newton hit its iteration limit.
+    ///
+    /// A tolerance of 1e-14 m/s cannot be met in f64.
+    #[error(
+        "Newton did not converge in {iterations} iterations (residual {residual:e} m/s, tolerance {tolerance:e})"
+    )]
+    NotConverged {
+        /// Iterations done.
+        iterations: usize,
+        /// Last ‖Δx‖∞/h.
+        residual: f64,
+        /// The tolerance asked for.
+        tolerance: f64,
+    },
+    /// The sparse Cholesky factorization failed (the matrix was not positive definite).
+    #[error("sparse Cholesky failed: {0}")]
+    Factorization(String),
+}
+
+const NONE: u32 = u32::MAX;
+
+/// What is minimized: the incremental potential of a time step, or the static potential.
+#[derive(Clone, Copy)]
+enum Mode {
+    Dynamic { h: f64 },
+    Static,
+}
+
+/// A stepper for one system: owns the sparsity pattern, the symbolic factorization and every
+/// work buffer, so stepping allocates nothing per iteration.
+pub struct Integrator {
+    n: usize,
+    free_of: Vec<u32>,
+    n_free: usize,
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    values: Vec<f64>,
+    /// Per element, per (a, b) stencil pair: the block's slot in column block v[b].
+    slots: Vec<u32>,
+    diag_slot: Vec<u32>,
+    symbolic: SymbolicCholesky<usize>,
+    l_values: Vec<f64>,
+    mem: MemBuffer,
+    grad: Vec<f64>,
+    dir: Vec<f64>,
+    x_hat: Vec<Vector3<f64>>,
+    x_trial: Vec<Vector3<f64>>,
+    local: Local,
+    /// Σ |gradient entries| of every term at the last assembly: with the size of the
+    /// positions it bounds the floating-point resolution of the objective.
+    force_scale: f64,
+}
+
+impl Integrator {
+    /// Builds the pattern and symbolic factorization for `sys`.
+    pub fn new(sys: &SolidSystem) -> Result<Self, StepError> {
+        let n = sys.mass.len();
+        let mut free_of = vec![NONE; n];
+        let mut n_free = 0usize;
+        for (i, f) in free_of.iter_mut().enumerate() {
+            if !sys.pinned.get(i).copied().unwrap_or(false) {
+                *f = n_free as u32;
+                n_free += 1;
+            }
+        }
+        // Block neighbours of each free vertex (itself included), sorted.
+        let mut nbrs: Vec<Vec<u32>> = (0..n_free as u32).map(|j| vec![j]).collect();
+        sys.elements.for_each(|e| {
+            for &a in e.vertices() {
+                for &b in e.vertices() {
+                    let (fa, fb) = (
+                        free_of.get(a as usize).copied().unwrap_or(NONE),
+                        free_of.get(b as usize).copied().unwrap_or(NONE),
+                    );
+                    if fa != NONE && fb != NONE {
+                        nbrs[fb as usize].push(fa);
+                    }
+                }
+            }
+        });
+        for l in &mut nbrs {
+            l.sort_unstable();
+            l.dedup();
+        }
+        let dofs = 3 * n_free;
+        let mut col_ptr = Vec::with_capacity(dofs + 1);
+        let mut row_idx = Vec::new();
+        col_ptr.push(0);
+        for l in &nbrs {
+            for _cc in 0..3 {
+                for &i in l {
+                    for rr in 0..3 {
+                        row_idx.push(3 * i as usize + rr);
+                    }
+                }
+                col_ptr.push(row_idx.len());
+            }
+        }
+        let mut slots = Vec::new();
+        sys.elements.for_each(|e| {
+            let v = e.vertices();
+            for &b in v {
+                for &a in v {
+                    let (fa, fb) = (
+                        free_of.get(a as usize).copied().unwrap_or(NONE),
+                        free_of.get(b as usize).copied().unwrap_or(NONE),
+                    );
+                    slots.push(if fa != NONE && fb != NONE {
+                        nbrs[fb as usize]
+                            .binary_search(&fa)
+                            .expect("pattern holds every pair") as u32
+                    } else {
+                        NONE
+                    });
+                }
+            }
+        });
+        let diag_slot = (0..n_free)
+            .map(|j| nbrs[j].binary_search(&(j as u32)).expect("diagonal") as u32)
+            .collect();
+        let sym = SymbolicSparseColMatRef::new_checked(dofs, dofs, &col_ptr, None, &row_idx);
+        let symbolic =
+            factorize_symbolic_cholesky(sym, Side::Lower, Default::default(), Default::default())
+                .map_err(|e| StepError::Factorization(format!("{e:?}")))?;
+        let scratch = symbolic
+            .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default())
+            .or(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
+        let l_values = vec![0.0; symbolic.len_val()];
+        Ok(Integrator {
+            n,
+            free_of,
+            n_free,
+            values: vec![0.0; row_idx.len()],
+            col_ptr,
+            row_idx,
+            slots,
+            diag_slot,
+            symbolic,
+            l_values,
+            mem: MemBuffer::new(scratch),
+            grad: vec![0.0; dofs],
+            dir: vec![0.0; dofs],
+            x_hat: vec![Vector3::zeros(); n],
+            x_trial: vec![Vector3::zeros(); n],
+            local: Local::default(),
+            force_scale: 0.0,
+        })
+    }
+
+    /// Nonzeros stored in the system matrix (both triangles).
+    pub fn nonzeros(&self) -> usize {
+        self.row_idx.len()
+    }
+
+    /// Free (unpinned) vertices.
+    pub fn free_vertices(&self) -> usize {
+        self.n_free
+    }
+
+    fn objective(
+        &self,
+        sys: &SolidSystem,
+        x: &[Vector3<f64>],
+        x0: &[Vector3<f64>],
+        mode: Mode,
+    ) -> f64 {
+        let mut e = 0.0;
+        for i in 0..self.n {
+            if self.free_of[i] != NONE {
+                let m = sys.mass[i];
+                e += match mode {
+                    Mode::Dynamic { h } => {
+                        m / (2.0 * h * h) * (x[i] - self.x_hat[i]).norm_squared()
+                            + sys.damping * m / (2.0 * h) * (x[i] - x0[i]).norm_squared()
+                    }
+                    // Static: the potential of gravity and the constant loads.
+                    Mode::Static => -(m * sys.gravity + sys.force(i)).dot(&x[i]),
+                };
+            }
+        }
+        sys.elements.for_each(|el| e += el.energy(x));
+        e
+    }
+
+    /// Fills `grad` and `values` at `x`.
+    fn assemble(&mut self, sys: &SolidSystem, x: &[Vector3<f64>], x0: &[Vector3<f64>], mode: Mode) {
+        self.grad.iter_mut().for_each(|g| *g = 0.0);
+        self.values.iter_mut().for_each(|v| *v = 0.0);
+        self.force_scale = 0.0;
+        for i in 0..self.n {
+            let f = self.free_of[i];
+            if f == NONE {
+                continue;
+            }
+            let m = sys.mass[i];
+            let (g, diag) = match mode {
+                Mode::Dynamic { h } => {
+                    let (a, b) = (m / (h * h), sys.damping * m / h);
+                    (a * (x[i] - self.x_hat[i]) + b * (x[i] - x0[i]), a + b)
+                }
+                Mode::Static => (-(m * sys.gravity + sys.force(i)), 0.0),
+            };
+            let f = f as usize;
+            for c in 0..3 {
+                self.grad[3 * f + c] += g[c];
+                let k = self.col_ptr[3 * f + c] + 3 * self.diag_slot[f] as usize + c;
+                self.values[k] += diag;
+            }
+            self.force_scale += g.abs().sum();
+        }
+        let mut cursor = 0usize;
+        let Integrator {
+            free_of,
+            col_ptr,
+            values,
+            grad,
+            slots,
+            local,
+            force_scale,
+            ..
+        } = self;
+        sys.elements.for_each(|el| {
+            let v = el.vertices();
+            let k = v.len();
+            el.eval(x, true, local);
+            *force_scale += local.grad[..3 * k].iter().map(|g| g.abs()).sum::<f64>();
+            for (a, &va) in v.iter().enumerate() {
+                let fa = free_of[va as usize];
+                if fa != NONE {
+                    for r in 0..3 {
+                        grad[3 * fa as usize + r] += local.grad[3 * a + r];
+                    }
+                }
+            }
+            for (b, &vb) in v.iter().enumerate() {
+                let fb = free_of[vb as usize];
+                for a in 0..k {
+                    let s = slots[cursor + b * k + a];
+                    if s == NONE {
+                        continue;
+                    }
+                    for cc in 0..3 {
+                        let base = col_ptr[3 * fb as usize + cc] + 3 * s as usize;
+                        for rr in 0..3 {
+                            values[base + rr] += local.hess[3 * b + cc][3 * a + rr];
+                        }
+                    }
+                }
+            }
+            cursor += k * k;
+        });
+    }
+
+    fn shift_diagonal(&mut self, mu: f64) {
+        for f in 0..self.n_free {
+            for c in 0..3 {
+                let k = self.col_ptr[3 * f + c] + 3 * self.diag_slot[f] as usize + c;
+                self.values[k] += mu;
+            }
+        }
+    }
+
+    /// Factorizes `values` + `shift`·I and solves for the direction `dir = −H⁻¹ grad`. If the
+    /// factorization meets a non-positive pivot (a singular Hessian: rigid modes of a free
+    /// static body, a straight chain's zero transverse stiffness), the diagonal shift grows
+    /// ×100 from 1e-10 of the largest diagonal entry until it succeeds (Levenberg–Marquardt).
+    fn newton_direction(&mut self, stats: &mut StepStats, shift: f64) -> Result<(), StepError> {
+        let t = Instant::now();
+        let dofs = 3 * self.n_free;
+        let scale = self
+            .values
+            .iter()
+            .fold(0.0f64, |m, v| m.max(v.abs()))
+            .max(f64::MIN_POSITIVE);
+        let mut applied = shift;
+        self.shift_diagonal(shift);
+        let mut tries = 0;
+        loop {
+            let sym = SymbolicSparseColMatRef::new_checked(
+                dofs,
+                dofs,
+                &self.col_ptr,
+                None,
+                &self.row_idx,
+            );
+            let a = SparseColMatRef::new(sym, &self.values);
+            let r = self.symbolic.factorize_numeric_llt(
+                &mut self.l_values,
+                a,
+                Side::Lower,
+                Default::default(),
+                Par::Seq,
+                MemStack::new(&mut self.mem),
+                Default::default(),
+            );
+            match r {
+                Ok(_) => break,
+                Err(e) if tries >= 8 => {
+                    return Err(StepError::Factorization(format!(
+                        "{e:?} even with a diagonal shift of {applied:e}"
+                    )));
+                }
+                Err(_) => {
+                    let more = if applied == 0.0 {
+                        1e-10 * scale
+                    } else {
+                        99.0 * applied
+                    };
+                    self.shift_diagonal(more);
+                    applied += more;
+                    tries += 1;
+                }
+            }
+        }
+        let llt = faer::sparse::linalg::cholesky::LltRef::new(&self.symbolic, &self.l_values);
+        stats.factor_seconds += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        for (d, g) in self.dir.iter_mut().zip(&self.grad) {
+            *d = -g;
+        }
+        let rhs = MatMut::from_column_major_slice_mut(&mut self.dir, dofs, 1);
+        llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut self.mem));
+        stats.solve_seconds += t.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    /// Advances `state` by `h`. Pinned vertices move to `pinned_to` (all vertices' targets;
+    /// only pinned entries are read) or stay where they are. On error `state` is unchanged.
+    pub fn step(
+        &mut self,
+        sys: &SolidSystem,
+        state: &mut State,
+        pinned_to: Option<&[Vector3<f64>]>,
+        h: f64,
+        settings: &Settings,
+    ) -> Result<StepStats, StepError> {
+        sys.check(state)?;
+        let x0 = state.x.clone();
+        let target = |i: usize| pinned_to.map_or(x0[i], |p| p[i]);
+        if settings.method == Method::Explicit {
+            return self.explicit(sys, state, &x0, &target, h);
+        }
+        let mut x = state.x.clone();
+        for i in 0..self.n {
+            if self.free_of[i] == NONE {
+                x[i] = target(i);
+                self.x_hat[i] = x[i];
+            } else {
+                // x̂ = x⁰ + h v⁰ + h² (g + f/m): constant forces act like gravity.
+                self.x_hat[i] =
+                    x0[i] + h * state.v[i] + h * h * (sys.gravity + sys.force(i) / sys.mass[i]);
+                x[i] = x0[i] + h * state.v[i];
+            }
+        }
+        let stats = self.minimize(sys, &mut x, &x0, Mode::Dynamic { h }, settings)?;
+        for i in 0..self.n {
+            state.v[i] = (x[i] - x0[i]) / h;
+        }
+        state.x = x;
+        Ok(stats)
+    }
+
+    /// Moves `state` to static equilibrium under gravity, the constant forces and the elastic
+    /// energies (pinned vertices stay put; velocities are set to zero). Newton with a
+    /// proximal term μ/2‖x − xₖ‖², μ = 1e-9 of the largest stiffness scaled by the gradient's
+    /// relative decrease: it converges to the true minimizer while keeping the Hessian SPD for
+    /// bodies with rigid or otherwise free modes.
+    /// The residual is ‖Δx‖∞ in metres.
+    pub fn solve_static(
+        &mut self,
+        sys: &SolidSystem,
+        state: &mut State,
+        settings: &Settings,
+    ) -> Result<StepStats, StepError> {
+        sys.check(state)?;
+        let x0 = state.x.clone();
+        let mut x = x0.clone();
+        let stats = self.minimize(sys, &mut x, &x0, Mode::Static, settings)?;
+        state.x = x;
+        state.v.iter_mut().for_each(|v| *v = Vector3::zeros());
+        Ok(stats)
+    }
+
+    /// Projected Newton with backtracking line search on the mode's objective.
+    fn minimize(
+        &mut self,
+        sys: &SolidSystem,
+        x: &mut Vec<Vector3<f64>>,
+        x0: &[Vector3<f64>],
+        mode: Mode,
+        settings: &Settings,
+    ) -> Result<StepStats, StepError> {
+        let mut stats = StepStats::default();
+        let linearized = settings.method == Method::Linearized;
+        let max_it = if linearized {
+            1
+        } else {
+            settings.max_iterations.max(1)
+        };
+        let scale = match mode {
+            Mode::Dynamic { h } => 1.0 / h,
+            Mode::Static => 1.0,
+        };
+        let mut g0 = 0.0f64;
+        for it in 0..max_it {
+            let t = Instant::now();
+            self.assemble(sys, x, x0, mode);
+            stats.assembly_seconds += t.elapsed().as_secs_f64();
+            if !self.grad.iter().all(|g| g.is_finite()) {
+                return Err(StepError::NonFinite { iteration: it });
+            }
+            let gnorm = self.grad.iter().fold(0.0f64, |m, g| m.max(g.abs()));
+            if it == 0 {
+                g0 = gnorm.max(f64::MIN_POSITIVE);
+            }
+            // Static: a proximal shift μ that shrinks with the gradient (Levenberg–Marquardt),
+            // so free modes stay regular while convergence stays superlinear.
+            let shift = match mode {
+                Mode::Static => {
+                    1e-9 * self.values.iter().fold(0.0f64, |m, v| m.max(v.abs()))
+                        * (gnorm / g0).clamp(1e-4, 1.0)
+                }
+                Mode::Dynamic { .. } => 0.0,
+            };
+            self.newton_direction(&mut stats, shift)?;
+            let res = self.dir.iter().fold(0.0f64, |m, d| m.max(d.abs())) * scale;
+            if !res.is_finite() {
+                return Err(StepError::NonFinite { iteration: it });
+            }
+            stats.iterations = it + 1;
+            stats.residuals.push(res);
+            if !linearized && res < settings.tolerance {
+                stats.converged = true;
+                break;
+            }
+            // Backtracking line search on the objective (Armijo, c = 1e-4).
+            let e0 = self.objective(sys, x, x0, mode);
+            let slope: f64 = self.grad.iter().zip(&self.dir).map(|(g, d)| g * d).sum();
+            let xmax = x.iter().fold(0.0f64, |m, p| m.max(p.amax()));
+            let mut alpha = 1.0;
+            loop {
+                for ((t, &p), &f) in self.x_trial.iter_mut().zip(x.iter()).zip(&self.free_of) {
+                    *t = if f == NONE {
+                        p
+                    } else {
+                        let f = 3 * f as usize;
+                        p + alpha * Vector3::new(self.dir[f], self.dir[f + 1], self.dir[f + 2])
+                    };
+                }
+                if linearized {
+                    break;
+                }
+                let e1 = self.objective(sys, &self.x_trial, x0, mode);
+                // When the predicted decrease is below the objective's floating-point
+                // resolution (≈ ε · |forces| · |positions|: terms like ½kL(l/L − 1)² are small
+                // numbers made from large ones) the comparison is noise: take the Newton step,
+                // which descends locally.
+                let unresolvable = -slope * alpha <= 64.0 * f64::EPSILON * self.force_scale * xmax;
+                if e1 <= e0 + 1e-4 * alpha * slope || unresolvable || alpha < 1e-10 {
+                    break;
+                }
+                alpha *= 0.5;
+                stats.halvings += 1;
+            }
+            std::mem::swap(x, &mut self.x_trial);
+            if linearized {
+                stats.converged = true;
+            }
+        }
+        if !stats.converged {
+            return Err(StepError::NotConverged {
+                iterations: stats.iterations,
+                residual: stats.residuals.last().copied().unwrap_or(f64::NAN),
+                tolerance: settings.tolerance,
+            });
+        }
+        if !x.iter().all(|p| p.iter().all(|c| c.is_finite())) {
+            return Err(StepError::NonFinite {
+                iteration: stats.iterations,
+            });
+        }
+        Ok(stats)
+    }
+
+    fn explicit(
+        &mut self,
+        sys: &SolidSystem,
+        state: &mut State,
+        x0: &[Vector3<f64>],
+        target: &dyn Fn(usize) -> Vector3<f64>,
+        h: f64,
+    ) -> Result<StepStats, StepError> {
+        // Forces at x⁰: f = −∇E + m g − c m v.
+        let mut force = vec![Vector3::zeros(); self.n];
+        let local = &mut self.local;
+        sys.elements.for_each(|el| {
+            el.eval(x0, false, local);
+            for (a, &v) in el.vertices().iter().enumerate() {
+                force[v as usize] -= Vector3::new(
+                    local.grad[3 * a],
+                    local.grad[3 * a + 1],
+                    local.grad[3 * a + 2],
+                );
+            }
+        });
+        let mut v = state.v.clone();
+        let mut x = x0.to_vec();
+        for i in 0..self.n {
+            if self.free_of[i] == NONE {
+                x[i] = target(i);
+                v[i] = (x[i] - x0[i]) / h;
+            } else {
+                let m = sys.mass[i];
+                v[i] +=
+                    h * ((force[i] + sys.force(i)) / m + sys.gravity - sys.damping * state.v[i]);
+                x[i] = x0[i] + h * v[i];
+            }
+        }
+        if !x.iter().chain(&v).all(|p| p.iter().all(|c| c.is_finite())) {
+            return Err(StepError::NonFinite { iteration: 0 });
+        }
+        state.x = x;
+        state.v = v;
+        Ok(StepStats {
+            converged: true,
+            ..Default::default()
+        })
+    }
+}

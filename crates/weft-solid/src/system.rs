@@ -1,0 +1,185 @@
+//! The mechanical system: lumped masses, pinned vertices, energy elements, and its state.
+
+use crate::energy::{Element, Hinge, Membrane, RodBend, RodStretch, Spring};
+use nalgebra::Vector3;
+
+/// Every energy element of a system, grouped by type (no dynamic dispatch in storage).
+#[derive(Clone, Debug, Default)]
+pub struct Elements {
+    /// Cloth membrane triangles.
+    pub membranes: Vec<Membrane>,
+    /// Cloth bending hinges.
+    pub hinges: Vec<Hinge>,
+    /// Rod segments.
+    pub stretches: Vec<RodStretch>,
+    /// Rod bending at interior vertices.
+    pub bends: Vec<RodBend>,
+    /// Soft attachments.
+    pub springs: Vec<Spring>,
+}
+
+impl Elements {
+    /// Calls `f` on every element in a fixed order (membranes, hinges, stretches, bends,
+    /// springs): assembly order is part of determinism.
+    pub fn for_each(&self, mut f: impl FnMut(&dyn Element)) {
+        self.membranes.iter().for_each(|e| f(e));
+        self.hinges.iter().for_each(|e| f(e));
+        self.stretches.iter().for_each(|e| f(e));
+        self.bends.iter().for_each(|e| f(e));
+        self.springs.iter().for_each(|e| f(e));
+    }
+    /// Number of elements.
+    pub fn len(&self) -> usize {
+        self.membranes.len()
+            + self.hinges.len()
+            + self.stretches.len()
+            + self.bends.len()
+            + self.springs.len()
+    }
+    /// True when there are none.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// A solid system: what does not change from step to step.
+#[derive(Clone, Debug)]
+pub struct SolidSystem {
+    /// Lumped mass per vertex [kg]; must be positive for every free vertex.
+    pub mass: Vec<f64>,
+    /// Pinned vertices follow prescribed positions (hard attachments: their DOFs are
+    /// eliminated from the solve).
+    pub pinned: Vec<bool>,
+    /// Energy elements.
+    pub elements: Elements,
+    /// Gravity [m/s²].
+    pub gravity: Vector3<f64>,
+    /// Mass-proportional damping [1/s]: a force −c m v.
+    pub damping: f64,
+    /// Constant external force per vertex [N] (empty for none).
+    pub forces: Vec<Vector3<f64>>,
+}
+
+impl SolidSystem {
+    /// A system of `n` free vertices with the given masses and no elements.
+    pub fn new(mass: Vec<f64>) -> Self {
+        let n = mass.len();
+        SolidSystem {
+            mass,
+            pinned: vec![false; n],
+            elements: Elements::default(),
+            gravity: Vector3::zeros(),
+            damping: 0.0,
+            forces: Vec::new(),
+        }
+    }
+    /// External force on vertex `i` (zero when none are set).
+    pub fn force(&self, i: usize) -> Vector3<f64> {
+        self.forces.get(i).copied().unwrap_or_else(Vector3::zeros)
+    }
+}
+
+/// Positions and velocities.
+#[derive(Clone, Debug, PartialEq)]
+pub struct State {
+    /// Positions [m].
+    pub x: Vec<Vector3<f64>>,
+    /// Velocities [m/s].
+    pub v: Vec<Vector3<f64>>,
+}
+
+/// Why a system cannot be simulated.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum SystemError {
+    /// Arrays disagree in length.
+    ///
+    /// `mass` has 10 entries but the state has 12 vertices.
+    #[error("{what} has {got} entries, expected {want}")]
+    Length {
+        /// Which array.
+        what: &'static str,
+        /// Its length.
+        got: usize,
+        /// The vertex count.
+        want: usize,
+    },
+    /// A free vertex has no mass (it would have infinite acceleration).
+    ///
+    /// Vertex 3 is free with mass 0.
+    #[error("vertex {vertex} is free but has mass {mass} (must be > 0)")]
+    Massless {
+        /// The vertex.
+        vertex: usize,
+        /// Its mass.
+        mass: f64,
+    },
+    /// An element names a vertex that does not exist.
+    ///
+    /// A hinge on vertex 99 of a 50-vertex system.
+    #[error("an element uses vertex {vertex}, but there are {n} vertices")]
+    VertexOutOfRange {
+        /// The index.
+        vertex: usize,
+        /// Vertex count.
+        n: usize,
+    },
+    /// A position or velocity is NaN or infinite.
+    ///
+    /// Vertex 7's rest position is NaN.
+    #[error("vertex {vertex} has a non-finite {what}")]
+    NonFinite {
+        /// The vertex.
+        vertex: usize,
+        /// `position` or `velocity`.
+        what: &'static str,
+    },
+}
+
+impl SolidSystem {
+    /// Checks the system against a state before simulating.
+    pub fn check(&self, state: &State) -> Result<(), SystemError> {
+        let n = state.x.len();
+        for (what, got) in [
+            ("velocity", state.v.len()),
+            ("mass", self.mass.len()),
+            ("pinned", self.pinned.len()),
+            ("forces", self.forces.len()),
+        ] {
+            if got != n && !(what == "forces" && got == 0) {
+                return Err(SystemError::Length { what, got, want: n });
+            }
+        }
+        for i in 0..n {
+            if !self.pinned[i]
+                && (self.mass[i].is_nan() || self.mass[i] <= 0.0 || self.mass[i].is_infinite())
+            {
+                return Err(SystemError::Massless {
+                    vertex: i,
+                    mass: self.mass[i],
+                });
+            }
+            if !state.x[i].iter().all(|c| c.is_finite()) {
+                return Err(SystemError::NonFinite {
+                    vertex: i,
+                    what: "position",
+                });
+            }
+            if !state.v[i].iter().all(|c| c.is_finite()) {
+                return Err(SystemError::NonFinite {
+                    vertex: i,
+                    what: "velocity",
+                });
+            }
+        }
+        let mut bad = None;
+        self.elements.for_each(|e| {
+            if let Some(&v) = e.vertices().iter().find(|&&v| v as usize >= n) {
+                bad.get_or_insert(v as usize);
+            }
+        });
+        match bad {
+            Some(vertex) => Err(SystemError::VertexOutOfRange { vertex, n }),
+            None => Ok(()),
+        }
+    }
+}

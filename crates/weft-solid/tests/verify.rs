@@ -1,0 +1,417 @@
+//! Verification of the solver against cases with known answers (shared/VERIFY.md, Solids).
+//! Each test states its reference and why its tolerance is right.
+
+use nalgebra::Vector3;
+use std::f64::consts::PI;
+use weft_solid::energy::{Membrane, MembraneMaterial, RodBend, RodStretch};
+use weft_solid::{Integrator, Method, Settings, SolidSystem, State, StepError};
+
+const G: f64 = 9.81;
+
+fn at_rest(x: Vec<Vector3<f64>>) -> State {
+    let n = x.len();
+    State {
+        x,
+        v: vec![Vector3::zeros(); n],
+    }
+}
+
+/// Static equilibrium to 1e-11 m (positions are O(1) m; f64 resolves ~1e-16 of that, and the
+/// stiffest problems here have condition numbers near 1e5).
+fn solve_static(sys: &SolidSystem, state: &mut State) {
+    let mut integ = Integrator::new(sys).unwrap();
+    let settings = Settings {
+        method: Method::Newton,
+        tolerance: 1e-11,
+        max_iterations: 200,
+    };
+    integ
+        .solve_static(sys, state, &settings)
+        .unwrap_or_else(|e| panic!("{e}"));
+}
+
+/// A straight rod along +x from `start`, `n` segments of length `len / n`.
+fn rod(
+    n: usize,
+    len: f64,
+    start: Vector3<f64>,
+    density: f64,
+    ea: f64,
+    ei: f64,
+) -> (SolidSystem, State) {
+    let l = len / n as f64;
+    let x: Vec<_> = (0..=n)
+        .map(|i| start + Vector3::new(i as f64 * l, 0.0, 0.0))
+        .collect();
+    let mut mass = vec![density * l; n + 1];
+    mass[0] *= 0.5;
+    mass[n] *= 0.5;
+    let mut sys = SolidSystem::new(mass);
+    sys.gravity = Vector3::new(0.0, -G, 0.0);
+    for i in 0..n {
+        sys.elements.stretches.push(RodStretch {
+            v: [i as u32, i as u32 + 1],
+            rest_length: l,
+            k: ea,
+        });
+    }
+    if ei > 0.0 {
+        for i in 1..n {
+            sys.elements.bends.push(RodBend {
+                v: [i as u32 - 1, i as u32, i as u32 + 1],
+                k: ei / (2.0 * l),
+                rest: 0.0,
+            });
+        }
+    }
+    (sys, at_rest(x))
+}
+
+#[test]
+fn pendulum_period_matches_the_large_amplitude_series() {
+    // A point mass on a stiff massless-ish rod (one segment), pivot pinned.
+    let (len, th0) = (1.0, 0.3f64);
+    let x = vec![
+        Vector3::zeros(),
+        Vector3::new(len * th0.sin(), -len * th0.cos(), 0.0),
+    ];
+    let mut sys = SolidSystem::new(vec![1.0, 1.0]);
+    sys.pinned[0] = true;
+    sys.gravity = Vector3::new(0.0, -G, 0.0);
+    sys.elements.stretches.push(RodStretch {
+        v: [0, 1],
+        rest_length: len,
+        k: 1e7,
+    });
+    let mut s = at_rest(x);
+    let mut integ = Integrator::new(&sys).unwrap();
+    let h = 5e-4;
+    let settings = Settings {
+        tolerance: 1e-9,
+        ..Settings::default()
+    };
+    let (mut t, mut crossings) = (0.0, Vec::new());
+    let mut prev = s.x[1].x;
+    while crossings.len() < 5 {
+        integ.step(&sys, &mut s, None, h, &settings).unwrap();
+        t += h;
+        let cur = s.x[1].x;
+        if prev > 0.0 && cur <= 0.0 || prev < 0.0 && cur >= 0.0 {
+            crossings.push(t - h * cur / (cur - prev)); // linear interpolation of the crossing
+        }
+        prev = cur;
+    }
+    let period = (crossings[4] - crossings[0]) / 2.0;
+    let t0 = 2.0 * PI * (len / G).sqrt();
+    let series = t0 * (1.0 + th0 * th0 / 16.0 + 11.0 * th0.powi(4) / 3072.0);
+    // Implicit Euler's phase error is O((ωh)²) ≈ 1e-6 here; the crossing interpolation and the
+    // amplitude lost to numerical damping over two periods (~1 %, which shifts the θ₀²/16
+    // correction by ~1e-4 of itself) are far below 2e-4. The correction itself is 5.6e-3.
+    let rel = (period - series).abs() / series;
+    eprintln!("pendulum period {period} vs series {series} (rel {rel:e})");
+    assert!(
+        rel < 2e-4,
+        "period {period} vs series {series} (rel {rel:e}); small-angle T₀ = {t0}"
+    );
+    assert!(
+        (period - t0) / t0 > 5e-3,
+        "the amplitude correction is resolved"
+    );
+}
+
+#[test]
+fn newton_is_stable_where_explicit_blows_up() {
+    // A hanging chain of stiff springs: ω_max ≈ 2√(k/m) = 2000 rad/s, so symplectic Euler is
+    // stable only for h < 2/ω_max = 1e-3 s. At h = 1e-2 it must blow up; implicit Euler must
+    // not, and (being dissipative) must not gain energy.
+    let (mut sys, s0) = rod(10, 1.0, Vector3::zeros(), 0.1, 1e4 * 0.1, 0.0);
+    sys.pinned[0] = true;
+    let energy = |s: &State| -> f64 {
+        let mut e: f64 = (0..s.x.len())
+            .map(|i| 0.5 * sys.mass[i] * s.v[i].norm_squared() + sys.mass[i] * G * s.x[i].y)
+            .sum();
+        for st in &sys.elements.stretches {
+            let l = (s.x[st.v[1] as usize] - s.x[st.v[0] as usize]).norm();
+            e += 0.5 * st.k * st.rest_length * (l / st.rest_length - 1.0).powi(2);
+        }
+        e
+    };
+    let h = 1e-2;
+    let mut explicit = s0.clone();
+    let mut integ = Integrator::new(&sys).unwrap();
+    let settings = |method| Settings {
+        method,
+        ..Settings::default()
+    };
+    let mut blew_up = false;
+    for _ in 0..200 {
+        match integ.step(&sys, &mut explicit, None, h, &settings(Method::Explicit)) {
+            Err(StepError::NonFinite { .. }) => {
+                blew_up = true;
+                break;
+            }
+            Ok(_) if energy(&explicit).abs() > 1e6 => {
+                blew_up = true;
+                break;
+            }
+            Ok(_) => {}
+            Err(e) => panic!("{e}"),
+        }
+    }
+    assert!(blew_up, "explicit should be unstable at h = 10× its limit");
+    let mut implicit = s0.clone();
+    let e0 = energy(&implicit);
+    for _ in 0..200 {
+        integ
+            .step(&sys, &mut implicit, None, h, &settings(Method::Newton))
+            .unwrap();
+        assert!(
+            energy(&implicit) <= e0 + 1e-9,
+            "implicit Euler gained energy"
+        );
+    }
+    // And explicit is fine below its limit.
+    let mut small = s0.clone();
+    for _ in 0..200 {
+        integ
+            .step(&sys, &mut small, None, 5e-4, &settings(Method::Explicit))
+            .unwrap();
+    }
+    assert!(energy(&small).abs() < 10.0);
+}
+
+/// Tip deflection of a rod cantilever under self-weight, clamped by pinning its first two
+/// vertices (position and tangent).
+fn cantilever_tip(n: usize) -> (f64, f64) {
+    let (len, r, e, rho) = (0.5, 1e-3, 2e11, 1000.0);
+    let area = PI * r * r;
+    let i = PI * r.powi(4) / 4.0;
+    let l = len / n as f64;
+    // One extra segment behind x = 0 carries the clamp.
+    let (mut sys, mut s) = rod(
+        n + 1,
+        len + l,
+        Vector3::new(-l, 0.0, 0.0),
+        rho * area,
+        e * area,
+        e * i,
+    );
+    sys.pinned[0] = true;
+    sys.pinned[1] = true;
+    solve_static(&sys, &mut s);
+    let q = rho * area * G;
+    // Pinning two vertices clamps the tangent at the midpoint of the pinned segment: the first
+    // bending vertex's Voronoi region starts there. So the beam is L + l/2 long.
+    let reference = q * (len + 0.5 * l).powi(4) / (8.0 * e * i);
+    (-s.x[n + 1].y, reference)
+}
+
+#[test]
+fn cantilever_rod_matches_beam_theory_and_converges_with_refinement() {
+    // Linear regime: δ/L ≈ 3e-3 (δ ≈ 1.5 mm on 0.5 m); the geometric nonlinearity is
+    // O((δ/L)²) ≈ 1e-5.
+    let mut errs = Vec::new();
+    for n in [10, 20, 40] {
+        let (tip, reference) = cantilever_tip(n);
+        errs.push((tip - reference).abs() / reference);
+    }
+    eprintln!("cantilever relative errors at 10, 20, 40 segments: {errs:?}");
+    // Lumped masses and the Voronoi curvature are second-order accurate: halving the segment
+    // length divides the error by about 4 (allowed 3–5), and 40 segments are within 0.5 %.
+    assert!(errs[2] < 5e-3, "errors {errs:?}");
+    for w in errs.windows(2) {
+        let ratio = w[0] / w[1];
+        assert!(
+            (3.0..5.0).contains(&ratio),
+            "refinement ratio {ratio}, errors {errs:?}"
+        );
+    }
+}
+
+#[test]
+fn catenary_sag_matches_the_analytic_curve() {
+    // Ends at x = ±a, length L = 1.2 · 2a, near-inextensible (strain ~1e-7), no bending.
+    let (a, len, n) = (0.5, 1.2, 60);
+    let l = len / n as f64;
+    // Start as a symmetric V of the right length; the solver finds the catenary.
+    let depth = ((len / 2.0).powi(2) - a * a).sqrt();
+    let x: Vec<_> = (0..=n)
+        .map(|i| {
+            let s = i as f64 * l;
+            let (u, y) = if s <= len / 2.0 {
+                (s / (len / 2.0), 0.0)
+            } else {
+                ((len - s) / (len / 2.0), 0.0)
+            };
+            let _ = y;
+            Vector3::new(-a + 2.0 * a * i as f64 / n as f64, -depth * u, 0.0)
+        })
+        .collect();
+    let mut mass = vec![0.01 * l; n + 1];
+    mass[0] *= 0.5;
+    mass[n] *= 0.5;
+    let mut sys = SolidSystem::new(mass);
+    sys.gravity = Vector3::new(0.0, -G, 0.0);
+    sys.pinned[0] = true;
+    sys.pinned[n] = true;
+    for i in 0..n {
+        let rest = (x[i + 1] - x[i]).norm();
+        let _ = rest;
+        sys.elements.stretches.push(RodStretch {
+            v: [i as u32, i as u32 + 1],
+            rest_length: l,
+            k: 1e3,
+        });
+    }
+    let mut s = at_rest(x);
+    solve_static(&sys, &mut s);
+    // 2c sinh(a/c) = L by bisection; sag = c (cosh(a/c) − 1).
+    let (mut lo, mut hi) = (1e-3, 1e3);
+    for _ in 0..200 {
+        let c = 0.5 * (lo + hi);
+        if 2.0 * c * (a / c).sinh() > len {
+            lo = c
+        } else {
+            hi = c
+        }
+    }
+    let c = 0.5 * (lo + hi);
+    let sag = c * ((a / c).cosh() - 1.0);
+    let mid = -s.x[n / 2].y;
+    eprintln!(
+        "catenary sag {mid} vs {sag} (rel {:e})",
+        (mid - sag).abs() / sag
+    );
+    // 60 straight segments approximate the curve to O(1/n²) ≈ 3e-4 of the sag; the stretch
+    // (tension/EA ≈ 1e-4) lengthens the chain slightly and deepens the sag by a similar amount.
+    assert!(
+        (mid - sag).abs() / sag < 2e-3,
+        "sag {mid} vs catenary {sag}"
+    );
+}
+
+/// A sheet of `nx × ny` vertices spanning `w × hgt` in the xy-plane.
+fn sheet(
+    nx: usize,
+    ny: usize,
+    w: f64,
+    hgt: f64,
+    mat: MembraneMaterial,
+    warp: Vector3<f64>,
+) -> (SolidSystem, State) {
+    let mut x = Vec::new();
+    for j in 0..ny {
+        for i in 0..nx {
+            x.push(Vector3::new(
+                w * i as f64 / (nx - 1) as f64,
+                hgt * j as f64 / (ny - 1) as f64,
+                0.0,
+            ));
+        }
+    }
+    let id = |i: usize, j: usize| (j * nx + i) as u32;
+    let mut sys = SolidSystem::new(vec![1e-3; nx * ny]);
+    for j in 0..ny - 1 {
+        for i in 0..nx - 1 {
+            for t in [
+                [id(i, j), id(i + 1, j), id(i + 1, j + 1)],
+                [id(i, j), id(i + 1, j + 1), id(i, j + 1)],
+            ] {
+                let rest = [x[t[0] as usize], x[t[1] as usize], x[t[2] as usize]];
+                sys.elements
+                    .membranes
+                    .push(Membrane::new(t, rest, warp, mat).unwrap());
+            }
+        }
+    }
+    (sys, at_rest(x))
+}
+
+/// Pulls a sheet with line tension `tension` [N/m] on its left and right edges and returns the
+/// measured strains (ε_x, ε_y) at its centre lines.
+fn uniaxial(mat: MembraneMaterial, warp: Vector3<f64>, tension: f64) -> (f64, f64) {
+    let (nx, ny, w, hgt) = (11, 11, 1.0, 1.0);
+    let (mut sys, mut s) = sheet(nx, ny, w, hgt, mat, warp);
+    // Pin the centre vertex: it removes rigid translation, and mesh and loads are point
+    // symmetric about it, so it does not move in the exact solution either.
+    sys.pinned[ny / 2 * nx + nx / 2] = true;
+    sys.forces = vec![Vector3::zeros(); nx * ny];
+    let dy = hgt / (ny - 1) as f64;
+    for j in 0..ny {
+        // The edge nodes share the line load by their tributary length (half at the corners).
+        let share = if j == 0 || j == ny - 1 { 0.5 } else { 1.0 } * tension * dy;
+        sys.forces[j * nx] = Vector3::new(-share, 0.0, 0.0);
+        sys.forces[j * nx + nx - 1] = Vector3::new(share, 0.0, 0.0);
+    }
+    solve_static(&sys, &mut s);
+    let (mx, my) = (ny / 2 * nx, nx / 2);
+    let ex = (s.x[mx + nx - 1].x - s.x[mx].x) / w - 1.0;
+    let ey = (s.x[my + (ny - 1) * nx].y - s.x[my].y) / hgt - 1.0;
+    (ex, ey)
+}
+
+#[test]
+fn uniaxial_membrane_tension_gives_the_strain_and_poisson_contraction() {
+    let (e, nu, t) = (1e6, 0.3, 1e-3);
+    let tension = 5.0; // N/m → ε = N/(E t) = 5e-3
+    let (ex, ey) = uniaxial(
+        MembraneMaterial::orthotropic(e, nu, t, 1.0, 1.0, 1.0),
+        Vector3::x(),
+        tension,
+    );
+    let want = tension / (e * t);
+    eprintln!("uniaxial: ε_x {ex} vs {want}; ν measured {}", -ey / ex);
+    // Green-strain StVK differs from the linear law by O(ε) = 0.5 %: allow 1 %.
+    assert!(
+        (ex - want).abs() / want < 1e-2,
+        "ε_x = {ex}, linear theory {want}"
+    );
+    assert!(
+        (-ey / ex - nu).abs() / nu < 2e-2,
+        "ν measured {} vs {nu}",
+        -ey / ex
+    );
+}
+
+#[test]
+fn anisotropic_cloth_has_the_set_warp_and_weft_stiffness() {
+    // Warp along x three times stiffer than the weft: pulling along x strains 3× less than
+    // the same pull rotated to y (the warp direction turned to y gives the weft response).
+    let mat = MembraneMaterial::orthotropic(1e6, 0.0, 1e-3, 3.0, 1.0, 1.0);
+    let (ex_warp, _) = uniaxial(mat, Vector3::x(), 5.0);
+    let (ex_weft, _) = uniaxial(mat, Vector3::y(), 5.0);
+    let want_warp = 5.0 / (3.0 * 1e6 * 1e-3);
+    let want_weft = 5.0 / (1e6 * 1e-3);
+    assert!(
+        (ex_warp - want_warp).abs() / want_warp < 1e-2,
+        "warp strain {ex_warp} vs {want_warp}"
+    );
+    assert!(
+        (ex_weft - want_weft).abs() / want_weft < 1e-2,
+        "weft strain {ex_weft} vs {want_weft}"
+    );
+}
+
+#[test]
+fn a_failed_step_leaves_the_state_unchanged_and_says_why() {
+    let (sys, s0) = rod(4, 1.0, Vector3::zeros(), 0.1, 1e3, 0.0);
+    let mut integ = Integrator::new(&sys).unwrap();
+    let mut s = s0.clone();
+    let tight = Settings {
+        tolerance: 0.0,
+        max_iterations: 3,
+        ..Settings::default()
+    };
+    let e = integ.step(&sys, &mut s, None, 1e-2, &tight).unwrap_err();
+    assert!(
+        matches!(e, StepError::NotConverged { iterations: 3, .. }),
+        "{e}"
+    );
+    assert_eq!(s, s0);
+    let mut bad = s0.clone();
+    bad.x[2].y = f64::NAN;
+    let e = integ
+        .step(&sys, &mut bad, None, 1e-2, &Settings::default())
+        .unwrap_err();
+    assert_eq!(e.to_string(), "vertex 2 has a non-finite position");
+}
