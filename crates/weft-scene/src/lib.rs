@@ -1,0 +1,14 @@
+//! `weft-scene`: what a scene is made of.
+//!
+//! A [`SceneElement`] is one object (a cloth, a fur set, a collider) or a data-less element
+//! standing for an interaction (an attachment). It holds optional [`Geometry`], named
+//! per-vertex [`Channel`]s (`rest`, `velocity`, pin weights…) and a set of SECs (Scene Element
+//! Components): typed, documented per-object parameter bundles that Behaviors read. This crate
+//! also reads and writes meshes and curves (OBJ, USD) and renders preview images.
+//!
+//! It knows nothing about solvers or graphs: data and I/O only.
+#![warn(missing_docs)]
+
+pub mod geometry;
+
+pub use geometry::{Curves, Geometry, Mesh, bounds};
