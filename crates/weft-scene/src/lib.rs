@@ -9,6 +9,11 @@
 //! It knows nothing about solvers or graphs: data and I/O only.
 #![warn(missing_docs)]
 
+pub mod element;
 pub mod geometry;
+pub mod procedural;
+pub mod sec;
 
+pub use element::{Channel, ElementKind, SceneElement, Transform};
 pub use geometry::{Curves, Geometry, Mesh, bounds};
+pub use sec::{Attachment, AttachmentMode, Density, DiscreteShell, Rod, Sec, SecSet};

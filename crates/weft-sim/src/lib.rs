@@ -1,1 +1,25 @@
-//! placeholder
+//! `weft-sim`: Behaviors and the steppers that turn a scene into a simulation.
+//!
+//! A [`Behavior`] is reusable simulation logic ("every cloth gets discrete-shell membrane and
+//! bending energies, from its Discrete Shell SEC or the documented defaults"). A
+//! [`BehaviorTree`] groups the Behaviors a solver applies. [`compile`] turns (scene, tree) into
+//! a `weft_solid::SolidSystem` holding exactly the terms the scene asks for, and
+//! [`SolidStepper`] advances it frame by frame with substeps, attachments that follow animated
+//! transforms, and automatic retries with smaller steps when a step fails.
+//!
+//! Functions take the data they read and write as arguments; nothing here prints or touches
+//! files.
+#![warn(missing_docs)]
+
+mod behavior;
+mod build;
+mod error;
+mod stepper;
+
+pub use behavior::{
+    AttachmentBehavior, Behavior, BehaviorTree, Damping, DiscreteShellMaterial, Gravity,
+    RodMaterial,
+};
+pub use build::{Compiled, Pin, SystemBuilder, compile};
+pub use error::SimError;
+pub use stepper::{FrameStats, SimState, SolidStepper, StepperSettings};

@@ -260,7 +260,7 @@ impl Integrator {
                 e += match mode {
                     Mode::Dynamic { h } => {
                         m / (2.0 * h * h) * (x[i] - self.x_hat[i]).norm_squared()
-                            + sys.damping * m / (2.0 * h) * (x[i] - x0[i]).norm_squared()
+                            + sys.damping(i) * m / (2.0 * h) * (x[i] - x0[i]).norm_squared()
                     }
                     // Static: the potential of gravity and the constant loads.
                     Mode::Static => -(m * sys.gravity + sys.force(i)).dot(&x[i]),
@@ -284,7 +284,7 @@ impl Integrator {
             let m = sys.mass[i];
             let (g, diag) = match mode {
                 Mode::Dynamic { h } => {
-                    let (a, b) = (m / (h * h), sys.damping * m / h);
+                    let (a, b) = (m / (h * h), sys.damping(i) * m / h);
                     (a * (x[i] - self.x_hat[i]) + b * (x[i] - x0[i]), a + b)
                 }
                 Mode::Static => (-(m * sys.gravity + sys.force(i)), 0.0),
@@ -601,7 +601,7 @@ impl Integrator {
             } else {
                 let m = sys.mass[i];
                 v[i] +=
-                    h * ((force[i] + sys.force(i)) / m + sys.gravity - sys.damping * state.v[i]);
+                    h * ((force[i] + sys.force(i)) / m + sys.gravity - sys.damping(i) * state.v[i]);
                 x[i] = x0[i] + h * v[i];
             }
         }

@@ -54,8 +54,8 @@ pub struct SolidSystem {
     pub elements: Elements,
     /// Gravity [m/s²].
     pub gravity: Vector3<f64>,
-    /// Mass-proportional damping [1/s]: a force −c m v.
-    pub damping: f64,
+    /// Mass-proportional damping per vertex [1/s]: a force −c m v (empty for none).
+    pub damping: Vec<f64>,
     /// Constant external force per vertex [N] (empty for none).
     pub forces: Vec<Vector3<f64>>,
 }
@@ -69,9 +69,13 @@ impl SolidSystem {
             pinned: vec![false; n],
             elements: Elements::default(),
             gravity: Vector3::zeros(),
-            damping: 0.0,
+            damping: Vec::new(),
             forces: Vec::new(),
         }
+    }
+    /// Damping coefficient of vertex `i` [1/s] (zero when none are set).
+    pub fn damping(&self, i: usize) -> f64 {
+        self.damping.get(i).copied().unwrap_or(0.0)
     }
     /// External force on vertex `i` (zero when none are set).
     pub fn force(&self, i: usize) -> Vector3<f64> {

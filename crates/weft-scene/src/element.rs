@@ -1,0 +1,110 @@
+//! Scene Elements and their per-vertex channels.
+
+use crate::geometry::Geometry;
+use crate::sec::SecSet;
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+/// A rigid transform (rotation and translation), f64.
+pub type Transform = nalgebra::Isometry3<f64>;
+
+/// What an element is, which decides which Behaviors apply to it by default.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum ElementKind {
+    /// A triangle mesh simulated as a shell.
+    Cloth,
+    /// Curves simulated as rods.
+    Hair,
+    /// A data-less element standing for an attachment instance.
+    Attachment,
+    /// A kinematic object (shown, later collided with; never simulated).
+    Collider,
+}
+
+impl ElementKind {
+    /// Lower-case name.
+    pub fn name(self) -> &'static str {
+        match self {
+            ElementKind::Cloth => "cloth",
+            ElementKind::Hair => "hair",
+            ElementKind::Attachment => "attachment",
+            ElementKind::Collider => "collider",
+        }
+    }
+}
+
+/// A named per-vertex channel.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Channel {
+    /// One number per vertex (pin weights, masses).
+    Float(Vec<f64>),
+    /// One vector per vertex (rest positions, velocities).
+    Vec3(Vec<[f64; 3]>),
+}
+
+impl Channel {
+    /// Entries in the channel.
+    pub fn len(&self) -> usize {
+        match self {
+            Channel::Float(v) => v.len(),
+            Channel::Vec3(v) => v.len(),
+        }
+    }
+    /// True when empty.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// One object of a scene, or a data-less element standing for an interaction.
+///
+/// Geometry and channels are shared (`Arc`): attaching an SEC or renaming an element copies
+/// pointers, not vertices; [`SceneElement::geometry_mut`] copies on write.
+#[derive(Clone, Debug)]
+pub struct SceneElement {
+    /// Name, unique in a scene (used in outputs and messages).
+    pub name: String,
+    /// What it is.
+    pub kind: ElementKind,
+    /// Its geometry.
+    pub geometry: Arc<Geometry>,
+    /// Named per-vertex channels (`rest`, `velocity`, …).
+    pub channels: Arc<BTreeMap<String, Channel>>,
+    /// Its Scene Element Components.
+    pub secs: SecSet,
+    /// Kinematic transform at the current frame (colliders and attachment targets).
+    pub transform: Option<Transform>,
+}
+
+impl SceneElement {
+    /// A new element with geometry, no channels and no SECs.
+    pub fn new(name: &str, kind: ElementKind, geometry: Geometry) -> Self {
+        SceneElement {
+            name: name.to_string(),
+            kind,
+            geometry: Arc::new(geometry),
+            channels: Arc::new(BTreeMap::new()),
+            secs: SecSet::default(),
+            transform: None,
+        }
+    }
+    /// Number of vertices.
+    pub fn vertex_count(&self) -> usize {
+        self.geometry.positions().len()
+    }
+    /// Mutable geometry, copied first if shared.
+    pub fn geometry_mut(&mut self) -> &mut Geometry {
+        Arc::make_mut(&mut self.geometry)
+    }
+    /// Sets a channel (copying the channel map if shared).
+    pub fn set_channel(&mut self, name: &str, c: Channel) {
+        Arc::make_mut(&mut self.channels).insert(name.to_string(), c);
+    }
+    /// A vec3 channel, if present with that type.
+    pub fn vec3_channel(&self, name: &str) -> Option<&[[f64; 3]]> {
+        match self.channels.get(name) {
+            Some(Channel::Vec3(v)) => Some(v),
+            _ => None,
+        }
+    }
+}

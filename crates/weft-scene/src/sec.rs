@@ -1,0 +1,209 @@
+//! Scene Element Components: typed per-object parameter bundles that Behaviors read.
+//!
+//! An SEC type is any type implementing [`Sec`]; a plugin adds one without touching this crate
+//! (and exposes it in graphs by registering a node that attaches it). A Behavior that finds no
+//! SEC of its kind on an element uses the type's documented `Default`.
+
+use std::any::Any;
+use std::collections::BTreeMap;
+use std::fmt::Debug;
+use std::sync::Arc;
+
+/// A Scene Element Component.
+pub trait Sec: Any + Send + Sync + Debug {
+    /// Type name (`"discrete_shell"`), unique among SEC types.
+    fn sec_type(&self) -> &'static str;
+    /// The parameters as JSON, for reports and `--stats`.
+    fn describe(&self) -> serde_json::Value;
+    /// Upcast for typed access.
+    fn as_any(&self) -> &dyn Any;
+}
+
+/// The SECs of one element: at most one per type, shared (`Arc`) so copying an element is cheap.
+#[derive(Clone, Debug, Default)]
+pub struct SecSet {
+    map: BTreeMap<&'static str, Arc<dyn Sec>>,
+}
+
+impl SecSet {
+    /// Adds or replaces the SEC of this type.
+    pub fn insert(&mut self, sec: impl Sec) {
+        self.map.insert(sec.sec_type(), Arc::new(sec));
+    }
+    /// The SEC of type `T`, if attached.
+    pub fn get<T: Sec>(&self) -> Option<&T> {
+        self.map
+            .values()
+            .find_map(|s| s.as_any().downcast_ref::<T>())
+    }
+    /// Names of the attached SEC types, sorted.
+    pub fn types(&self) -> impl Iterator<Item = &'static str> + '_ {
+        self.map.keys().copied()
+    }
+    /// Every SEC.
+    pub fn iter(&self) -> impl Iterator<Item = &Arc<dyn Sec>> {
+        self.map.values()
+    }
+    /// Number of SECs.
+    pub fn len(&self) -> usize {
+        self.map.len()
+    }
+    /// True when none.
+    pub fn is_empty(&self) -> bool {
+        self.map.is_empty()
+    }
+}
+
+macro_rules! sec_impl {
+    ($t:ty, $name:literal) => {
+        impl Sec for $t {
+            fn sec_type(&self) -> &'static str {
+                $name
+            }
+            fn describe(&self) -> serde_json::Value {
+                serde_json::json!(format!("{self:?}"))
+            }
+            fn as_any(&self) -> &dyn Any {
+                self
+            }
+        }
+    };
+}
+
+/// Discrete Shell: membrane and bending of cloth (SI units).
+#[derive(Clone, Debug, PartialEq)]
+pub struct DiscreteShell {
+    /// Young's modulus [Pa] (default 1e6).
+    pub youngs_modulus: f64,
+    /// Poisson's ratio, in [0, 0.5) (default 0.3).
+    pub poisson_ratio: f64,
+    /// Thickness [m] (default 1e-3).
+    pub thickness: f64,
+    /// Multiplier on the plate bending stiffness D = E t³ / (12 (1 − ν²)) (default 1).
+    pub bend_scale: f64,
+    /// Mass-proportional damping [1/s] (default 0).
+    pub damping: f64,
+    /// Channel holding rest positions (default `rest`; the initial positions when absent).
+    pub rest_channel: String,
+    /// Stiffness multiplier along the warp (default 1).
+    pub warp_scale: f64,
+    /// Stiffness multiplier along the weft (default 1).
+    pub weft_scale: f64,
+    /// Shear stiffness multiplier (default 1).
+    pub shear_scale: f64,
+    /// Warp direction in rest space, projected into each triangle (default +x).
+    pub warp_direction: [f64; 3],
+}
+
+impl Default for DiscreteShell {
+    fn default() -> Self {
+        DiscreteShell {
+            youngs_modulus: 1e6,
+            poisson_ratio: 0.3,
+            thickness: 1e-3,
+            bend_scale: 1.0,
+            damping: 0.0,
+            rest_channel: "rest".into(),
+            warp_scale: 1.0,
+            weft_scale: 1.0,
+            shear_scale: 1.0,
+            warp_direction: [1.0, 0.0, 0.0],
+        }
+    }
+}
+sec_impl!(DiscreteShell, "discrete_shell");
+
+/// Rod: stretching and bending of hair (SI units).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Rod {
+    /// Young's modulus [Pa] (default 3e9, keratin).
+    pub youngs_modulus: f64,
+    /// Fibre radius [m] (default 5e-5).
+    pub radius: f64,
+    /// Multiplier on the axial stiffness E·πr² (default 1; lower it for stretchy strands).
+    pub stretch_scale: f64,
+    /// Multiplier on the bending stiffness E·πr⁴/4 (default 1).
+    pub bend_scale: f64,
+    /// Mass-proportional damping [1/s] (default 0).
+    pub damping: f64,
+    /// Channel holding rest positions (default `rest`; the initial positions when absent).
+    pub rest_channel: String,
+}
+
+impl Default for Rod {
+    fn default() -> Self {
+        Rod {
+            youngs_modulus: 3e9,
+            radius: 5e-5,
+            stretch_scale: 1.0,
+            bend_scale: 1.0,
+            damping: 0.0,
+            rest_channel: "rest".into(),
+        }
+    }
+}
+sec_impl!(Rod, "rod");
+
+/// Density: mass per area of cloth and per length of hair.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Density {
+    /// Cloth mass per rest area [kg/m²] (default 0.2).
+    pub area_density: f64,
+    /// Hair mass per rest length [kg/m] (default 1e-5: a 50 µm keratin fibre).
+    pub line_density: f64,
+}
+
+impl Default for Density {
+    fn default() -> Self {
+        Density {
+            area_density: 0.2,
+            line_density: 1e-5,
+        }
+    }
+}
+sec_impl!(Density, "density");
+
+/// How attached vertices follow their target.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum AttachmentMode {
+    /// Exactly (the vertices' degrees of freedom are eliminated).
+    Hard,
+    /// Through a zero-length spring of this stiffness [N/m].
+    Spring(f64),
+}
+
+/// Attachment: vertices of a target element that follow a fixed point or an animated
+/// transform. Carried by a data-less attachment element.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Attachment {
+    /// Name of the element whose vertices are attached.
+    pub target: String,
+    /// Attached vertex indices, within the target element.
+    pub vertices: Vec<u32>,
+    /// Hard or spring.
+    pub mode: AttachmentMode,
+}
+sec_impl!(Attachment, "attachment");
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn one_sec_per_type_typed_access() {
+        let mut s = SecSet::default();
+        s.insert(DiscreteShell::default());
+        s.insert(DiscreteShell {
+            thickness: 2e-3,
+            ..Default::default()
+        });
+        s.insert(Density::default());
+        assert_eq!(s.len(), 2);
+        assert_eq!(s.get::<DiscreteShell>().unwrap().thickness, 2e-3);
+        assert!(s.get::<Rod>().is_none());
+        assert_eq!(
+            s.types().collect::<Vec<_>>(),
+            vec!["density", "discrete_shell"]
+        );
+    }
+}

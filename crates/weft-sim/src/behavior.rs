@@ -1,0 +1,438 @@
+//! Behaviors: reusable simulation logic applied to every element that carries (or defaults)
+//! the SEC it reads.
+
+use crate::build::SystemBuilder;
+use crate::error::SimError;
+use nalgebra::Vector3;
+use std::fmt::Debug;
+use std::sync::Arc;
+use weft_scene::{
+    Attachment, AttachmentMode, Density, DiscreteShell, ElementKind, Geometry, Rod, SceneElement,
+};
+use weft_solid::energy::{
+    Hinge, Membrane, MembraneMaterial, RodBend, RodStretch, Spring, dihedral_angle,
+};
+
+/// Simulation logic for the elements a Behavior applies to.
+pub trait Behavior: Send + Sync + Debug {
+    /// Name shown in reports (`discrete_shell_material`).
+    fn name(&self) -> &'static str;
+    /// SEC types this Behavior reads (documentation; the builder records what it actually read
+    /// for each element, and SECs nobody read for their element are reported).
+    fn reads(&self) -> &'static [&'static str];
+    /// Adds this Behavior's terms for `scene` to the builder.
+    fn apply(&self, scene: &[SceneElement], b: &mut SystemBuilder) -> Result<(), SimError>;
+}
+
+/// The Behaviors a solver applies, in order.
+#[derive(Clone, Debug, Default)]
+pub struct BehaviorTree {
+    /// The Behaviors.
+    pub behaviors: Vec<Arc<dyn Behavior>>,
+}
+
+fn bad(element: &str, field: &str, message: String) -> SimError {
+    SimError::BadParameter {
+        element: element.into(),
+        field: field.into(),
+        message,
+    }
+}
+
+fn positive(element: &str, field: &str, x: f64) -> Result<(), SimError> {
+    if x > 0.0 && x.is_finite() {
+        Ok(())
+    } else {
+        Err(bad(element, field, format!("must be > 0, got {x}")))
+    }
+}
+
+fn v3(p: [f64; 3]) -> Vector3<f64> {
+    Vector3::new(p[0], p[1], p[2])
+}
+
+/// Rest positions: the named channel if present (its length must match), else the current
+/// positions.
+fn rest_positions<'a>(e: &'a SceneElement, channel: &str) -> Result<&'a [[f64; 3]], SimError> {
+    let n = e.vertex_count();
+    match e.vec3_channel(channel) {
+        Some(r) if r.len() == n => Ok(r),
+        Some(r) => Err(SimError::BadGeometry {
+            element: e.name.clone(),
+            message: format!(
+                "rest channel '{channel}' has {} entries but the element has {n} vertices",
+                r.len()
+            ),
+        }),
+        None => Ok(e.geometry.positions()),
+    }
+}
+
+/// Discrete-shell cloth: StVK membrane (orthotropic by the SEC's warp/weft/shear scales) on every
+/// triangle and hinge bending on every interior edge, with lumped masses from the Density SEC.
+/// Bending stiffness per hinge: k = bend_scale · D · |ē|²/Ā, D = E t³/(12(1 − ν²)), Ā the two
+/// triangles' rest area, so that a uniform curvature κ costs ½Dκ² per area on an equilateral
+/// mesh (the sum over the three edge directions of 2√3·cos⁴ weights gives 3/2·k·κ²).
+#[derive(Clone, Debug, Default)]
+pub struct DiscreteShellMaterial;
+
+impl Behavior for DiscreteShellMaterial {
+    fn name(&self) -> &'static str {
+        "discrete_shell_material"
+    }
+    fn reads(&self) -> &'static [&'static str] {
+        &["discrete_shell", "density"]
+    }
+    fn apply(&self, scene: &[SceneElement], b: &mut SystemBuilder) -> Result<(), SimError> {
+        for (ei, e) in scene.iter().enumerate() {
+            let (ElementKind::Cloth, Geometry::Mesh(mesh)) = (e.kind, &*e.geometry) else {
+                continue;
+            };
+            b.read(ei, "discrete_shell");
+            b.read(ei, "density");
+            let shell = e.secs.get::<DiscreteShell>().cloned().unwrap_or_default();
+            let density = e.secs.get::<Density>().cloned().unwrap_or_default();
+            let name = e.name.as_str();
+            positive(name, "discrete_shell.youngs_modulus", shell.youngs_modulus)?;
+            positive(name, "discrete_shell.thickness", shell.thickness)?;
+            positive(name, "density.area_density", density.area_density)?;
+            for (f, x) in [
+                ("warp_scale", shell.warp_scale),
+                ("weft_scale", shell.weft_scale),
+                ("shear_scale", shell.shear_scale),
+            ] {
+                positive(name, &format!("discrete_shell.{f}"), x)?;
+            }
+            if !(0.0..0.5).contains(&shell.poisson_ratio) {
+                return Err(bad(
+                    name,
+                    "discrete_shell.poisson_ratio",
+                    format!("must be in [0, 0.5), got {}", shell.poisson_ratio),
+                ));
+            }
+            if !(shell.bend_scale >= 0.0 && shell.bend_scale.is_finite()) {
+                return Err(bad(
+                    name,
+                    "discrete_shell.bend_scale",
+                    format!("must be >= 0, got {}", shell.bend_scale),
+                ));
+            }
+            if !(shell.damping >= 0.0 && shell.damping.is_finite()) {
+                return Err(bad(
+                    name,
+                    "discrete_shell.damping",
+                    format!("must be >= 0, got {}", shell.damping),
+                ));
+            }
+            let rest = rest_positions(e, &shell.rest_channel)?;
+            let off = b.offset(ei).expect("cloth elements have a vertex range");
+            let mat = MembraneMaterial::orthotropic(
+                shell.youngs_modulus,
+                shell.poisson_ratio,
+                shell.thickness,
+                shell.warp_scale,
+                shell.weft_scale,
+                shell.shear_scale,
+            );
+            let warp = v3(shell.warp_direction);
+            let n = rest.len() as u32;
+            let mut areas = Vec::with_capacity(mesh.triangles.len());
+            for (ti, t) in mesh.triangles.iter().enumerate() {
+                if t.iter().any(|&v| v >= n) {
+                    return Err(SimError::BadGeometry {
+                        element: name.into(),
+                        message: format!(
+                            "triangle {ti} {t:?} uses a vertex beyond the {n} the element has"
+                        ),
+                    });
+                }
+                let r = [
+                    v3(rest[t[0] as usize]),
+                    v3(rest[t[1] as usize]),
+                    v3(rest[t[2] as usize]),
+                ];
+                let gv = [t[0] + off, t[1] + off, t[2] + off];
+                let m = Membrane::new(gv, r, warp, mat).map_err(|err| SimError::BadGeometry {
+                    element: name.into(),
+                    message: format!("triangle {ti} {t:?} has zero rest area ({:e} m²)", err.area),
+                })?;
+                for &v in &gv {
+                    b.add_mass(v as usize, m.area * density.area_density / 3.0);
+                }
+                areas.push(m.area);
+                b.system.elements.membranes.push(m);
+            }
+            for v in 0..n {
+                b.add_damping((v + off) as usize, shell.damping);
+            }
+            if shell.bend_scale > 0.0 {
+                let d = shell.bend_scale * shell.youngs_modulus * shell.thickness.powi(3)
+                    / (12.0 * (1.0 - shell.poisson_ratio.powi(2)));
+                self.hinges(e, mesh, rest, &areas, off, d, b)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+impl DiscreteShellMaterial {
+    #[allow(clippy::too_many_arguments)]
+    fn hinges(
+        &self,
+        e: &SceneElement,
+        mesh: &weft_scene::Mesh,
+        rest: &[[f64; 3]],
+        areas: &[f64],
+        off: u32,
+        d: f64,
+        b: &mut SystemBuilder,
+    ) -> Result<(), SimError> {
+        // Edge → the triangles using it (with the vertex opposite the edge).
+        let mut edges: std::collections::BTreeMap<(u32, u32), Vec<(usize, u32)>> =
+            Default::default();
+        for (ti, t) in mesh.triangles.iter().enumerate() {
+            for k in 0..3 {
+                let (a, c, o) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+                edges.entry((a.min(c), a.max(c))).or_default().push((ti, o));
+            }
+        }
+        let mut non_manifold = 0usize;
+        for tris in edges.values() {
+            match tris.as_slice() {
+                [(t1, o1), (t2, o2)] => {
+                    // Cyclic order of triangle 1 is (p, q, o₁): then n₁ is its normal, and n₂ is
+                    // triangle 2's when the mesh is consistently oriented (flat ⇒ θ = 0).
+                    let t = mesh.triangles[*t1];
+                    let ko = (0..3)
+                        .find(|&k| t[k] == *o1)
+                        .expect("opposite vertex is in its triangle");
+                    let (p, q) = (t[(ko + 1) % 3], t[(ko + 2) % 3]);
+                    let verts = [p, q, *o1, *o2];
+                    let x: Vec<f64> = verts.iter().flat_map(|&v| rest[v as usize]).collect();
+                    let rest_angle = dihedral_angle(&x);
+                    let len2 = (v3(rest[q as usize]) - v3(rest[p as usize])).norm_squared();
+                    let abar = areas[*t1] + areas[*t2];
+                    b.system.elements.hinges.push(Hinge {
+                        v: verts.map(|v| v + off),
+                        k: d * len2 / abar,
+                        rest: rest_angle,
+                    });
+                }
+                [_] => {}
+                _ => non_manifold += 1,
+            }
+        }
+        if non_manifold > 0 {
+            b.warn(format!("element '{}': {non_manifold} non-manifold edge(s) (shared by more than two triangles) get no bending hinge", e.name));
+        }
+        Ok(())
+    }
+}
+
+/// Rods (hair): stretch on every segment and bending at every interior vertex of each curve,
+/// with lumped masses from the Density SEC. Axial stiffness k = stretch_scale·E·πr²; bending
+/// EI = bend_scale·E·πr⁴/4 over the Voronoi length (see `weft_solid::energy::RodBend`).
+#[derive(Clone, Debug, Default)]
+pub struct RodMaterial;
+
+impl Behavior for RodMaterial {
+    fn name(&self) -> &'static str {
+        "rod_material"
+    }
+    fn reads(&self) -> &'static [&'static str] {
+        &["rod", "density"]
+    }
+    fn apply(&self, scene: &[SceneElement], b: &mut SystemBuilder) -> Result<(), SimError> {
+        for (ei, e) in scene.iter().enumerate() {
+            let (ElementKind::Hair, Geometry::Curves(curves)) = (e.kind, &*e.geometry) else {
+                continue;
+            };
+            b.read(ei, "rod");
+            b.read(ei, "density");
+            let rod = e.secs.get::<Rod>().cloned().unwrap_or_default();
+            let density = e.secs.get::<Density>().cloned().unwrap_or_default();
+            let name = e.name.as_str();
+            positive(name, "rod.youngs_modulus", rod.youngs_modulus)?;
+            positive(name, "rod.radius", rod.radius)?;
+            positive(name, "rod.stretch_scale", rod.stretch_scale)?;
+            positive(name, "density.line_density", density.line_density)?;
+            if !(rod.bend_scale >= 0.0 && rod.bend_scale.is_finite()) {
+                return Err(bad(
+                    name,
+                    "rod.bend_scale",
+                    format!("must be >= 0, got {}", rod.bend_scale),
+                ));
+            }
+            if !(rod.damping >= 0.0 && rod.damping.is_finite()) {
+                return Err(bad(
+                    name,
+                    "rod.damping",
+                    format!("must be >= 0, got {}", rod.damping),
+                ));
+            }
+            let rest = rest_positions(e, &rod.rest_channel)?;
+            let off = b.offset(ei).expect("hair elements have a vertex range");
+            let area = std::f64::consts::PI * rod.radius * rod.radius;
+            let ea = rod.stretch_scale * rod.youngs_modulus * area;
+            let ei_bend =
+                rod.bend_scale * rod.youngs_modulus * area * rod.radius * rod.radius / 4.0;
+            for k in 0..curves.len() {
+                let r = curves.range(k);
+                let pts: Vec<Vector3<f64>> = rest[r.clone()].iter().map(|&p| v3(p)).collect();
+                for s in 0..pts.len().saturating_sub(1) {
+                    let l = (pts[s + 1] - pts[s]).norm();
+                    if l.is_nan() || l <= 1e-12 {
+                        return Err(SimError::BadGeometry {
+                            element: name.into(),
+                            message: format!("curve {k}, segment {s} has zero rest length"),
+                        });
+                    }
+                    let (a, c) = ((r.start + s) as u32 + off, (r.start + s + 1) as u32 + off);
+                    b.system.elements.stretches.push(RodStretch {
+                        v: [a, c],
+                        rest_length: l,
+                        k: ea,
+                    });
+                    b.add_mass(a as usize, 0.5 * l * density.line_density);
+                    b.add_mass(c as usize, 0.5 * l * density.line_density);
+                }
+                if ei_bend > 0.0 {
+                    for s in 1..pts.len().saturating_sub(1) {
+                        let (e0, e1) = (pts[s] - pts[s - 1], pts[s + 1] - pts[s]);
+                        let vor = 0.5 * (e0.norm() + e1.norm());
+                        let kb = 2.0 * e0.cross(&e1).norm() / (e0.norm() * e1.norm() + e0.dot(&e1));
+                        let v = (r.start + s) as u32 + off;
+                        b.system.elements.bends.push(RodBend {
+                            v: [v - 1, v, v + 1],
+                            k: ei_bend / (2.0 * vor),
+                            rest: kb,
+                        });
+                    }
+                }
+            }
+            for v in 0..rest.len() as u32 {
+                b.add_damping((v + off) as usize, rod.damping);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Uniform gravity on every simulated vertex.
+#[derive(Clone, Debug)]
+pub struct Gravity {
+    /// Acceleration [m/s²] (default (0, −9.81, 0)).
+    pub acceleration: [f64; 3],
+}
+
+impl Behavior for Gravity {
+    fn name(&self) -> &'static str {
+        "gravity"
+    }
+    fn reads(&self) -> &'static [&'static str] {
+        &[]
+    }
+    fn apply(&self, _scene: &[SceneElement], b: &mut SystemBuilder) -> Result<(), SimError> {
+        b.system.gravity += v3(self.acceleration);
+        Ok(())
+    }
+}
+
+/// Mass-proportional damping on every simulated vertex, added to the SECs' own.
+#[derive(Clone, Debug)]
+pub struct Damping {
+    /// Coefficient [1/s]: a force −c m v.
+    pub coefficient: f64,
+}
+
+impl Behavior for Damping {
+    fn name(&self) -> &'static str {
+        "damping"
+    }
+    fn reads(&self) -> &'static [&'static str] {
+        &[]
+    }
+    fn apply(&self, _scene: &[SceneElement], b: &mut SystemBuilder) -> Result<(), SimError> {
+        if !(self.coefficient >= 0.0 && self.coefficient.is_finite()) {
+            return Err(bad(
+                "(tree)",
+                "damping.coefficient",
+                format!("must be >= 0, got {}", self.coefficient),
+            ));
+        }
+        for v in 0..b.system.mass.len() {
+            b.add_damping(v, self.coefficient);
+        }
+        Ok(())
+    }
+}
+
+/// Attachments: for every attachment element, its vertices follow their targets (hard: their
+/// DOFs are eliminated; spring: a zero-length spring pulls them).
+#[derive(Clone, Debug, Default)]
+pub struct AttachmentBehavior;
+
+impl Behavior for AttachmentBehavior {
+    fn name(&self) -> &'static str {
+        "attachment"
+    }
+    fn reads(&self) -> &'static [&'static str] {
+        &["attachment"]
+    }
+    fn apply(&self, scene: &[SceneElement], b: &mut SystemBuilder) -> Result<(), SimError> {
+        for (ai, a) in scene.iter().enumerate() {
+            let Some(att) = a.secs.get::<Attachment>() else {
+                continue;
+            };
+            b.read(ai, "attachment");
+            let fail = |m: String| SimError::BadAttachment {
+                attachment: a.name.clone(),
+                message: m,
+            };
+            let Some(ti) = scene.iter().position(|e| e.name == att.target) else {
+                return Err(fail(format!(
+                    "no element named '{}' in the scene",
+                    att.target
+                )));
+            };
+            let Some(off) = b.offset(ti) else {
+                return Err(fail(format!(
+                    "element '{}' is not simulated (a {})",
+                    att.target,
+                    scene[ti].kind.name()
+                )));
+            };
+            let n = scene[ti].vertex_count();
+            if let AttachmentMode::Spring(k) = att.mode
+                && !(k > 0.0 && k.is_finite())
+            {
+                return Err(fail(format!("spring stiffness must be > 0, got {k}")));
+            }
+            for &v in &att.vertices {
+                if v as usize >= n {
+                    return Err(fail(format!(
+                        "vertex {v} is out of range (element '{}' has {n} vertices)",
+                        att.target
+                    )));
+                }
+                let g = (v + off) as usize;
+                let spring = match att.mode {
+                    AttachmentMode::Hard => {
+                        b.system.pinned[g] = true;
+                        None
+                    }
+                    AttachmentMode::Spring(k) => {
+                        b.system.elements.springs.push(Spring {
+                            v: [g as u32],
+                            target: b.x[g],
+                            k,
+                        });
+                        Some(b.system.elements.springs.len() - 1)
+                    }
+                };
+                b.pin(ai, g, spring, scene[ai].transform);
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,201 @@
+//! Compiling (scene, Behavior tree) into a solid system with exactly the terms the scene needs.
+
+use crate::behavior::BehaviorTree;
+use crate::error::SimError;
+use nalgebra::Vector3;
+use std::collections::{BTreeMap, BTreeSet};
+use std::ops::Range;
+use weft_scene::{ElementKind, SceneElement, Transform};
+use weft_solid::{SolidSystem, State};
+
+/// An attached vertex and where its target comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Pin {
+    /// Global vertex index.
+    pub vertex: usize,
+    /// Scene index of the attachment element (whose transform, if any, moves the target).
+    pub attachment: usize,
+    /// Target in the attachment transform's frame at the start (world when it has none).
+    pub local: Vector3<f64>,
+    /// Index of the spring in `system.elements.springs` for spring attachments.
+    pub spring: Option<usize>,
+}
+
+/// Builds a system while Behaviors apply.
+pub struct SystemBuilder {
+    /// The system so far.
+    pub system: SolidSystem,
+    /// Initial positions (global).
+    pub x: Vec<Vector3<f64>>,
+    ranges: Vec<Option<Range<usize>>>,
+    pins: Vec<Pin>,
+    warnings: Vec<String>,
+    read: Vec<BTreeSet<&'static str>>,
+}
+
+impl SystemBuilder {
+    /// Records that a Behavior read (or defaulted) SEC type `sec` of scene element `e`: SECs
+    /// that no Behavior reads for their element are reported.
+    pub fn read(&mut self, e: usize, sec: &'static str) {
+        if let Some(r) = self.read.get_mut(e) {
+            r.insert(sec);
+        }
+    }
+    /// First global vertex of scene element `e`, if it is simulated.
+    pub fn offset(&self, e: usize) -> Option<u32> {
+        self.ranges.get(e)?.as_ref().map(|r| r.start as u32)
+    }
+    /// Adds lumped mass to a vertex.
+    pub fn add_mass(&mut self, v: usize, m: f64) {
+        self.system.mass[v] += m;
+    }
+    /// Adds damping [1/s] to a vertex.
+    pub fn add_damping(&mut self, v: usize, c: f64) {
+        self.system.damping[v] += c;
+    }
+    /// Records an attached vertex.
+    pub fn pin(
+        &mut self,
+        attachment: usize,
+        vertex: usize,
+        spring: Option<usize>,
+        transform: Option<Transform>,
+    ) {
+        let x = self.x[vertex];
+        let local = match transform {
+            Some(t) => t.inverse_transform_point(&x.into()).coords,
+            None => x,
+        };
+        self.pins.push(Pin {
+            vertex,
+            attachment,
+            local,
+            spring,
+        });
+    }
+    /// Records a warning for the run's report.
+    pub fn warn(&mut self, w: String) {
+        if !self.warnings.contains(&w) {
+            self.warnings.push(w);
+        }
+    }
+}
+
+/// A scene compiled for the solid solver.
+#[derive(Clone, Debug)]
+pub struct Compiled {
+    /// The system.
+    pub system: SolidSystem,
+    /// Initial state (positions from geometry, velocities from the `velocity` channel).
+    pub state: State,
+    /// Global vertex range of each scene element (None for elements that are not simulated).
+    pub ranges: Vec<Option<Range<usize>>>,
+    /// Attached vertices.
+    pub pins: Vec<Pin>,
+    /// Problems that do not stop the simulation (unread SECs, non-manifold edges).
+    pub warnings: Vec<String>,
+    /// Terms in the system, by kind: what the scene asked for and nothing else.
+    pub terms: BTreeMap<&'static str, usize>,
+}
+
+/// Compiles a scene: every cloth and hair element gets a range of global vertices; each
+/// Behavior adds its terms; elements without mass, and SECs no Behavior reads, are reported.
+pub fn compile(scene: &[SceneElement], tree: &BehaviorTree) -> Result<Compiled, SimError> {
+    let mut names = BTreeSet::new();
+    let mut ranges = Vec::with_capacity(scene.len());
+    let mut x = Vec::new();
+    let mut v = Vec::new();
+    for e in scene {
+        if !names.insert(e.name.as_str()) {
+            return Err(SimError::SceneChanged(format!(
+                "two elements are named '{}': names must be unique",
+                e.name
+            )));
+        }
+        if !matches!(e.kind, ElementKind::Cloth | ElementKind::Hair) {
+            ranges.push(None);
+            continue;
+        }
+        let start = x.len();
+        let vel = e
+            .vec3_channel("velocity")
+            .filter(|c| c.len() == e.vertex_count());
+        for (i, p) in e.geometry.positions().iter().enumerate() {
+            if !p.iter().all(|c| c.is_finite()) {
+                return Err(SimError::BadGeometry {
+                    element: e.name.clone(),
+                    message: format!("vertex {i} has a non-finite position {p:?}"),
+                });
+            }
+            x.push(Vector3::new(p[0], p[1], p[2]));
+            v.push(vel.map_or_else(Vector3::zeros, |c| Vector3::new(c[i][0], c[i][1], c[i][2])));
+        }
+        ranges.push(Some(start..x.len()));
+    }
+    let n = x.len();
+    let mut system = SolidSystem::new(vec![0.0; n]);
+    system.damping = vec![0.0; n];
+    let mut b = SystemBuilder {
+        system,
+        x,
+        ranges,
+        pins: Vec::new(),
+        warnings: Vec::new(),
+        read: vec![BTreeSet::new(); scene.len()],
+    };
+    for beh in &tree.behaviors {
+        beh.apply(scene, &mut b)?;
+    }
+    // Every simulated vertex needs mass (or to be pinned): otherwise no material Behavior
+    // covered it.
+    for (e, r) in scene.iter().zip(&b.ranges) {
+        if let Some(r) = r
+            && let Some(i) = r
+                .clone()
+                .find(|&i| b.system.mass[i] <= 0.0 && !b.system.pinned[i])
+        {
+            return Err(SimError::BadGeometry {
+                element: e.name.clone(),
+                message: format!(
+                    "vertex {} has no mass: no material Behavior in the tree applies to this {} (add a {} material)",
+                    i - r.start,
+                    e.kind.name(),
+                    if e.kind == ElementKind::Cloth {
+                        "discrete shell"
+                    } else {
+                        "rod"
+                    }
+                ),
+            });
+        }
+    }
+    for (ei, e) in scene.iter().enumerate() {
+        for t in e.secs.types() {
+            if !b.read[ei].contains(t) {
+                let w = format!(
+                    "element '{}' carries a '{t}' SEC that no Behavior in the tree reads for it",
+                    e.name
+                );
+                b.warn(w);
+            }
+        }
+    }
+    let el = &b.system.elements;
+    let terms = BTreeMap::from([
+        ("membranes", el.membranes.len()),
+        ("hinges", el.hinges.len()),
+        ("rod_stretches", el.stretches.len()),
+        ("rod_bends", el.bends.len()),
+        ("springs", el.springs.len()),
+        ("pinned", b.system.pinned.iter().filter(|p| **p).count()),
+        ("vertices", n),
+    ]);
+    Ok(Compiled {
+        state: State { x: b.x, v },
+        system: b.system,
+        ranges: b.ranges,
+        pins: b.pins,
+        warnings: b.warnings,
+        terms,
+    })
+}

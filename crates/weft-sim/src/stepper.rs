@@ -1,0 +1,265 @@
+//! Advancing a compiled scene frame by frame.
+//!
+//! Each frame is split into substeps. Attachment targets follow their element's transform,
+//! interpolated between the previous frame's and this frame's (translation linearly, rotation
+//! by slerp) at each substep's end time. A substep that fails (no convergence, a NaN) is
+//! retried as two half steps, recursively up to `max_retries` levels, and every retry is
+//! counted in the frame's statistics; if it still fails the error names the frame and substep.
+
+use crate::build::Compiled;
+use crate::error::SimError;
+use nalgebra::Vector3;
+use std::sync::Arc;
+use std::time::Instant;
+use weft_scene::{Channel, SceneElement, Transform};
+use weft_solid::{Integrator, Settings, SolidSystem, State, StepError};
+
+/// How frames are stepped.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepperSettings {
+    /// Substeps per frame (≥ 1).
+    pub substeps: usize,
+    /// Solver method and tolerance.
+    pub solver: Settings,
+    /// Levels of step halving allowed when a substep fails.
+    pub max_retries: usize,
+}
+
+impl Default for StepperSettings {
+    fn default() -> Self {
+        StepperSettings {
+            substeps: 4,
+            solver: Settings::default(),
+            max_retries: 4,
+        }
+    }
+}
+
+/// The simulation state at a frame: positions, velocities, and the attachment transforms the
+/// frame ended with (the start of the next frame's interpolation).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SimState {
+    /// Solid state.
+    pub solid: State,
+    /// Transform of each scene element at this frame.
+    pub transforms: Vec<Option<Transform>>,
+}
+
+/// What a frame cost.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FrameStats {
+    /// Solver steps taken (substeps plus the extra ones from retries).
+    pub steps: usize,
+    /// Substeps that were split because a step failed.
+    pub retries: usize,
+    /// Newton iterations, summed over steps.
+    pub newton_iterations: usize,
+    /// Most Newton iterations in one step.
+    pub max_newton_iterations: usize,
+    /// Largest final residual of a step [m/s].
+    pub max_residual: f64,
+    /// Seconds assembling.
+    pub assembly_seconds: f64,
+    /// Seconds factorizing.
+    pub factor_seconds: f64,
+    /// Seconds in triangular solves.
+    pub solve_seconds: f64,
+    /// Wall time of the frame.
+    pub seconds: f64,
+}
+
+/// Steps one compiled scene. Owns the integrator (pattern and factorization workspace) and a
+/// working copy of the system whose spring targets move; it holds no simulation state, so
+/// stepping from any checkpoint gives the same result.
+pub struct SolidStepper {
+    compiled: Arc<Compiled>,
+    system: SolidSystem,
+    integrator: Integrator,
+    settings: StepperSettings,
+    targets: Vec<Vector3<f64>>,
+}
+
+fn lerp(a: Option<Transform>, b: Option<Transform>, s: f64) -> Option<Transform> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some(a.lerp_slerp(&b, s)),
+        (a, b) => b.or(a),
+    }
+}
+
+impl SolidStepper {
+    /// A stepper for `compiled`.
+    pub fn new(compiled: Arc<Compiled>, settings: StepperSettings) -> Result<Self, SimError> {
+        let integrator = Integrator::new(&compiled.system).map_err(|e| SimError::StepFailed {
+            frame: 0,
+            substep: 0,
+            substeps: settings.substeps,
+            retries: 0,
+            message: e.to_string(),
+        })?;
+        let targets = compiled.state.x.clone();
+        Ok(SolidStepper {
+            system: compiled.system.clone(),
+            compiled,
+            integrator,
+            settings,
+            targets,
+        })
+    }
+
+    /// The compiled scene.
+    pub fn compiled(&self) -> &Compiled {
+        &self.compiled
+    }
+
+    /// The state at the start frame.
+    pub fn initial_state(&self, scene: &[SceneElement]) -> SimState {
+        SimState {
+            solid: self.compiled.state.clone(),
+            transforms: scene.iter().map(|e| e.transform).collect(),
+        }
+    }
+
+    fn set_targets(&mut self, from: &[Option<Transform>], to: &[Option<Transform>], s: f64) {
+        for p in &self.compiled.pins {
+            let t = lerp(
+                from.get(p.attachment).copied().flatten(),
+                to.get(p.attachment).copied().flatten(),
+                s,
+            );
+            let x = match t {
+                Some(t) => t.transform_point(&p.local.into()).coords,
+                None => p.local,
+            };
+            self.targets[p.vertex] = x;
+            if let Some(k) = p.spring {
+                self.system.elements.springs[k].target = x;
+            }
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn interval(
+        &mut self,
+        st: &mut State,
+        from: &[Option<Transform>],
+        to: &[Option<Transform>],
+        s0: f64,
+        s1: f64,
+        h: f64,
+        depth: usize,
+        stats: &mut FrameStats,
+    ) -> Result<(), StepError> {
+        self.set_targets(from, to, s1);
+        match self.integrator.step(
+            &self.system,
+            st,
+            Some(&self.targets),
+            h,
+            &self.settings.solver,
+        ) {
+            Ok(s) => {
+                stats.steps += 1;
+                stats.newton_iterations += s.iterations;
+                stats.max_newton_iterations = stats.max_newton_iterations.max(s.iterations);
+                stats.max_residual = stats
+                    .max_residual
+                    .max(s.residuals.last().copied().unwrap_or(0.0));
+                stats.assembly_seconds += s.assembly_seconds;
+                stats.factor_seconds += s.factor_seconds;
+                stats.solve_seconds += s.solve_seconds;
+                Ok(())
+            }
+            Err(StepError::System(e)) => Err(StepError::System(e)),
+            Err(_) if depth < self.settings.max_retries => {
+                stats.retries += 1;
+                let mid = 0.5 * (s0 + s1);
+                self.interval(st, from, to, s0, mid, 0.5 * h, depth + 1, stats)?;
+                self.interval(st, from, to, mid, s1, 0.5 * h, depth + 1, stats)
+            }
+            Err(e) => Err(e),
+        }
+    }
+
+    /// State at `frame` from the state at the previous frame; `scene` is the scene at `frame`
+    /// (its attachment transforms are this frame's targets).
+    pub fn advance(
+        &mut self,
+        prev: &SimState,
+        scene: &[SceneElement],
+        frame: i64,
+        frame_dt: f64,
+    ) -> Result<(SimState, FrameStats), SimError> {
+        let t0 = Instant::now();
+        for (i, (e, r)) in scene.iter().zip(&self.compiled.ranges).enumerate() {
+            if let Some(r) = r
+                && e.vertex_count() != r.len()
+            {
+                return Err(SimError::SceneChanged(format!(
+                    "element {i} '{}' has {} vertices at frame {frame} but had {} at the start",
+                    e.name,
+                    e.vertex_count(),
+                    r.len()
+                )));
+            }
+        }
+        if scene.len() != self.compiled.ranges.len() {
+            return Err(SimError::SceneChanged(format!(
+                "the scene has {} elements at frame {frame} but had {} at the start",
+                scene.len(),
+                self.compiled.ranges.len()
+            )));
+        }
+        let to: Vec<Option<Transform>> = scene.iter().map(|e| e.transform).collect();
+        let n = self.settings.substeps.max(1);
+        let h = frame_dt / n as f64;
+        let mut st = prev.solid.clone();
+        let mut stats = FrameStats::default();
+        for k in 0..n {
+            let (s0, s1) = (k as f64 / n as f64, (k + 1) as f64 / n as f64);
+            let retries_before = stats.retries;
+            self.interval(&mut st, &prev.transforms, &to, s0, s1, h, 0, &mut stats)
+                .map_err(|e| SimError::StepFailed {
+                    frame,
+                    substep: k + 1,
+                    substeps: n,
+                    retries: stats.retries - retries_before,
+                    message: e.to_string(),
+                })?;
+        }
+        stats.seconds = t0.elapsed().as_secs_f64();
+        Ok((
+            SimState {
+                solid: st,
+                transforms: to,
+            },
+            stats,
+        ))
+    }
+
+    /// The scene with simulated elements moved to `state` (and a `velocity` channel set).
+    pub fn scene_at(&self, scene: &[SceneElement], state: &SimState) -> Vec<SceneElement> {
+        scene
+            .iter()
+            .zip(&self.compiled.ranges)
+            .map(|(e, r)| {
+                let mut e = e.clone();
+                if let Some(r) = r {
+                    for (p, x) in e
+                        .geometry_mut()
+                        .positions_mut()
+                        .iter_mut()
+                        .zip(&state.solid.x[r.clone()])
+                    {
+                        *p = [x.x, x.y, x.z];
+                    }
+                    let vel = state.solid.v[r.clone()]
+                        .iter()
+                        .map(|v| [v.x, v.y, v.z])
+                        .collect();
+                    e.set_channel("velocity", Channel::Vec3(vel));
+                }
+                e
+            })
+            .collect()
+    }
+}
