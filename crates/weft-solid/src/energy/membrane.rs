@@ -151,24 +151,45 @@ impl Element for Membrane {
             g.fixed_rows_mut::<3>(3 * a)
                 .copy_from(&(self.area * p * self.w[a]));
         }
-        // Hessian column by column: perturb vertex b along axis i, dF = e_i w_bᵀ,
-        // dE = sym(Fᵀ dF), dP = dF S + F C:dE, column = A [dP w₀; dP w₁; dP w₂].
-        let mut h = SMatrix::<f64, 9, 9>::zeros();
-        for b in 0..3 {
-            for i in 0..3 {
+        // A = ∂P/∂F as a 6×6 matrix over F's entries (row i, column c ↦ 3c + i): perturb
+        // dF = e_j e_dᵀ, dE = sym(Fᵀ dF), dP = dF S + F C:dE. Then the Hessian block of
+        // vertices (a, b) is area · Σ_{c,d} w_a[c] w_b[d] A[(·,c),(·,d)]. Projecting A (6×6)
+        // instead of the 9×9 Hessian keeps H = Bᵀ A B PSD at a third of the cost (Teran et al.
+        // 2005 project the same quantity).
+        let mut da = SMatrix::<f64, 6, 6>::zeros();
+        for d in 0..2 {
+            for j in 0..3 {
                 let mut df = Matrix3x2::zeros();
-                df.set_row(i, &self.w[b].transpose());
+                df[(j, d)] = 1.0;
                 let ft_df = f.transpose() * df;
                 let de = 0.5 * (ft_df + ft_df.transpose());
                 let dp = df * s + f * self.material.stress(&de);
-                for a in 0..3 {
-                    h.fixed_view_mut::<3, 1>(3 * a, 3 * b + i)
-                        .copy_from(&(self.area * dp * self.w[a]));
+                for c in 0..2 {
+                    for i in 0..3 {
+                        da[(3 * c + i, 3 * d + j)] = dp[(i, c)];
+                    }
                 }
             }
         }
         if project {
-            crate::spd::project_psd(&mut h);
+            let mut sym = 0.5 * (da + da.transpose());
+            crate::spd::project_psd(&mut sym);
+            da = sym;
+        }
+        let mut h = SMatrix::<f64, 9, 9>::zeros();
+        for a in 0..3 {
+            for b in 0..3 {
+                for c in 0..2 {
+                    for d in 0..2 {
+                        let wab = self.area * self.w[a][c] * self.w[b][d];
+                        for i in 0..3 {
+                            for j in 0..3 {
+                                h[(3 * a + i, 3 * b + j)] += wab * da[(3 * c + i, 3 * d + j)];
+                            }
+                        }
+                    }
+                }
+            }
         }
         out.set::<9>(self.area * self.material.density(&e), &g, &h);
     }

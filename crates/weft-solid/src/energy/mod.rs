@@ -7,7 +7,7 @@ mod membrane;
 mod rod;
 mod spring;
 
-pub use hinge::{Hinge, dihedral_angle};
+pub use hinge::{Hinge, dihedral_angle, dihedral_gradient};
 pub use membrane::{Membrane, MembraneMaterial};
 pub use rod::{RodBend, RodStretch};
 pub use spring::Spring;
@@ -155,6 +155,20 @@ pub(crate) mod fd {
         // The projected Hessian is PSD (smallest eigenvalue ≥ −1e-9 of the largest).
         let mut lproj = Local::default();
         e.eval(x, true, &mut lproj);
+        // The solver uses the projected mode: its energy and gradient must be the exact ones
+        // (only the Hessian may be a PSD surrogate).
+        assert!(
+            (lproj.energy - l.energy).abs() <= 1e-12 * l.energy.abs().max(1e-300),
+            "projected energy differs"
+        );
+        for i in 0..n {
+            assert!(
+                (lproj.grad[i] - l.grad[i]).abs() <= 1e-10 * gscale,
+                "projected gradient[{i}] {} vs exact {}",
+                lproj.grad[i],
+                l.grad[i]
+            );
+        }
         let m = nalgebra::DMatrix::from_fn(n, n, |i, j| lproj.hess[j][i]);
         let eig = m.symmetric_eigen();
         let max = eig.eigenvalues.iter().fold(0.0f64, |a, b| a.max(b.abs()));
