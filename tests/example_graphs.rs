@@ -36,6 +36,12 @@ fn every_graph_file_runs_to_finite_outputs() {
                 let v = g
                     .pull(o, Context::new(frame))
                     .unwrap_or_else(|e| panic!("{name}: {e}"));
+                if let Some(p) = v.get::<String>() {
+                    assert!(
+                        std::path::Path::new(p).exists(),
+                        "{name}: output {o} names {p}, which was not written"
+                    );
+                }
                 let finite = match (v.get::<f64>(), v.get::<[f64; 3]>()) {
                     (Some(x), _) => x.is_finite(),
                     (_, Some(a)) => a.iter().all(|x| x.is_finite()),
@@ -45,7 +51,7 @@ fn every_graph_file_runs_to_finite_outputs() {
             }
         }
     }
-    assert!(count >= 4, "expected the example graphs, found {count}");
+    assert!(count >= 6, "expected the example graphs, found {count}");
 }
 
 /// Implicit Euler for y' = -λy³ with the same Newton iteration and tolerance as the graph.

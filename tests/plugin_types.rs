@@ -76,7 +76,7 @@ fn plugin_registry() -> Arc<Registry> {
     .unwrap();
     // A registration that names an unknown port type is refused, not deferred to load time.
     let e = r.register(
-        NodeSpec::new("poly.bad", "x").input("m", "mesh", "x"),
+        NodeSpec::new("poly.bad", "x").input("m", "point_cloud", "x"),
         |_| Err("unused".into()),
     );
     assert_eq!(
@@ -84,7 +84,7 @@ fn plugin_registry() -> Arc<Registry> {
         Err(RegistryError::UnknownPortType {
             node: "poly.bad".into(),
             port: "m".into(),
-            ty: "mesh".into()
+            ty: "point_cloud".into()
         })
     );
     Arc::new(r)

@@ -12,6 +12,7 @@
 mod expr;
 mod math;
 mod ode;
+pub mod physics;
 mod time;
 mod values;
 mod vec3;
@@ -29,6 +30,7 @@ pub fn register_all(r: &mut Registry) -> Result<(), RegistryError> {
     vec3::register(r)?;
     time::register(r)?;
     ode::register(r)?;
+    physics::register(r)?;
     Ok(())
 }
 

@@ -148,7 +148,7 @@ fn a_non_manifold_edge_gets_no_hinge_and_one_warning() {
         let extra = m.positions.len() as u32;
         m.positions.push([0.0, 0.0, 0.5]);
         m.triangles.push([0, 1, extra]); // a third triangle on edge (0, 1)
-        m.triangles.push([1, 0, extra + 0]);
+        m.triangles.push([1, 0, extra]);
     }
     // Duplicate fin triangle makes edge (0,1) shared by three or more triangles.
     let c = compile(&[e], &tree()).unwrap();

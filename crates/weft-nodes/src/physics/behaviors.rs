@@ -1,0 +1,109 @@
+//! Behavior nodes and the Behavior tree.
+
+use super::types::BehaviorValue;
+use std::sync::Arc;
+use weft_graph::{Kernel, NodeSpec, ParamSpec, Registry, RegistryError, Value};
+use weft_sim::{
+    AttachmentBehavior, Behavior, BehaviorTree, Damping, DiscreteShellMaterial, Gravity,
+    RodMaterial,
+};
+
+fn plain(
+    r: &mut Registry,
+    name: &str,
+    doc: &str,
+    make: fn() -> Arc<dyn Behavior>,
+) -> Result<(), RegistryError> {
+    r.register(
+        NodeSpec::new(name, doc).output("behavior", "behavior", "the Behavior"),
+        move |_| {
+            Ok(Kernel::from_fn(move |cx| {
+                cx.set("behavior", Value::new(BehaviorValue(make())));
+                Ok(())
+            }))
+        },
+    )
+}
+
+pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
+    plain(
+        r,
+        "behavior.discrete_shell",
+        "cloth material: membrane and hinge bending on every cloth element, from its Discrete Shell and Density SECs or their defaults",
+        || Arc::new(DiscreteShellMaterial),
+    )?;
+    plain(
+        r,
+        "behavior.rod",
+        "hair material: stretch and bending on every hair element, from its Rod and Density SECs or their defaults",
+        || Arc::new(RodMaterial),
+    )?;
+    plain(
+        r,
+        "behavior.attachment",
+        "attachments: every attachment element's vertices follow their targets",
+        || Arc::new(AttachmentBehavior),
+    )?;
+    r.register(
+        NodeSpec::new(
+            "behavior.gravity",
+            "uniform gravity on every simulated vertex",
+        )
+        .output("behavior", "behavior", "the Behavior")
+        .param(
+            ParamSpec::vec3("acceleration", [0.0, -9.81, 0.0])
+                .unit("m/s²")
+                .doc("gravitational acceleration"),
+        ),
+        |_| {
+            Ok(Kernel::from_fn(|cx| {
+                let g = Gravity {
+                    acceleration: cx.params().vec3("acceleration"),
+                };
+                cx.set("behavior", Value::new(BehaviorValue(Arc::new(g))));
+                Ok(())
+            }))
+        },
+    )?;
+    r.register(
+        NodeSpec::new(
+            "behavior.damping",
+            "mass-proportional damping on every simulated vertex (added to the SECs' own)",
+        )
+        .output("behavior", "behavior", "the Behavior")
+        .param(
+            ParamSpec::float("coefficient", 0.1)
+                .ge(0.0)
+                .unit("1/s")
+                .doc("damping c: a force −c m v"),
+        ),
+        |_| {
+            Ok(Kernel::from_fn(|cx| {
+                let d = Damping {
+                    coefficient: cx.params().f64("coefficient"),
+                };
+                cx.set("behavior", Value::new(BehaviorValue(Arc::new(d))));
+                Ok(())
+            }))
+        },
+    )?;
+    r.register(
+        NodeSpec::new(
+            "behavior.tree",
+            "groups Behaviors for a solver, applied in connection order",
+        )
+        .input_multi("behaviors", "behavior", "the Behaviors")
+        .output("tree", "behavior_tree", "the tree"),
+        |_| {
+            Ok(Kernel::from_fn(|cx| {
+                let behaviors = cx
+                    .inputs("behaviors")?
+                    .iter()
+                    .filter_map(|v| v.get::<BehaviorValue>().map(|b| b.0.clone()))
+                    .collect();
+                cx.set("tree", Value::new(BehaviorTree { behaviors }));
+                Ok(())
+            }))
+        },
+    )
+}

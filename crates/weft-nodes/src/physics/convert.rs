@@ -1,0 +1,204 @@
+//! Conversion nodes: wrap geometry into Scene Elements.
+
+use serde_json::json;
+use weft_graph::{
+    EvalCx, Kernel, NodeError, NodeSpec, ParamSpec, Params, Registry, RegistryError, Value,
+};
+use weft_scene::{
+    Attachment, AttachmentMode, Channel, Curves, ElementKind, Geometry, Mesh, SceneElement,
+    Transform,
+};
+
+fn check_name(p: &Params) -> Result<(), String> {
+    let n = p.str("name");
+    if n.is_empty() || n.chars().any(|c| c.is_control()) {
+        return Err(format!(
+            "param 'name': must be a non-empty printable name, got {n:?}"
+        ));
+    }
+    Ok(())
+}
+
+fn finite(points: &[[f64; 3]], port: &str) -> Result<(), NodeError> {
+    match points.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+        Some(i) => Err(NodeError::Input {
+            port: port.into(),
+            message: format!("vertex {i} has a non-finite position {:?}", points[i]),
+        }),
+        None => Ok(()),
+    }
+}
+
+fn with_rest(mut e: SceneElement) -> SceneElement {
+    let rest = e.geometry.positions().to_vec();
+    e.set_channel("rest", Channel::Vec3(rest));
+    e
+}
+
+/// Vertex indices from a list parameter of whole numbers.
+fn indices(p: &Params, name: &str) -> Result<Vec<u32>, String> {
+    p.floats(name)
+        .iter()
+        .map(|&x| {
+            if x >= 0.0 && x.fract() == 0.0 && x < u32::MAX as f64 {
+                Ok(x as u32)
+            } else {
+                Err(format!("param '{name}': {x} is not a vertex index"))
+            }
+        })
+        .collect()
+}
+
+pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
+    r.register(
+        NodeSpec::new(
+            "convert.cloth",
+            "wraps a mesh into a cloth Scene Element (its positions become the rest shape)",
+        )
+        .input("mesh", "mesh", "the cloth's mesh")
+        .output("element", "element", "the cloth element")
+        .param(ParamSpec::string("name", "cloth").doc("element name, unique in the scene")),
+        |p| {
+            check_name(p)?;
+            Ok(Kernel::from_fn(|cx| {
+                let m = cx.input_as::<Mesh>("mesh")?;
+                finite(&m.positions, "mesh")?;
+                if m.triangles.is_empty() {
+                    return Err(NodeError::Input {
+                        port: "mesh".into(),
+                        message: "has no triangles".into(),
+                    });
+                }
+                let e = with_rest(SceneElement::new(
+                    cx.params().str("name"),
+                    ElementKind::Cloth,
+                    Geometry::Mesh(m),
+                ));
+                cx.set("element", Value::new(e));
+                Ok(())
+            }))
+        },
+    )?;
+    r.register(
+        NodeSpec::new(
+            "convert.hair",
+            "wraps curves into a hair Scene Element (its positions become the rest shape)",
+        )
+        .input("curves", "curves", "the strands")
+        .output("element", "element", "the hair element")
+        .param(ParamSpec::string("name", "hair").doc("element name, unique in the scene")),
+        |p| {
+            check_name(p)?;
+            Ok(Kernel::from_fn(|cx| {
+                let c = cx.input_as::<Curves>("curves")?;
+                finite(&c.positions, "curves")?;
+                if c.is_empty() {
+                    return Err(NodeError::Input {
+                        port: "curves".into(),
+                        message: "has no curves".into(),
+                    });
+                }
+                let e = with_rest(SceneElement::new(
+                    cx.params().str("name"),
+                    ElementKind::Hair,
+                    Geometry::Curves(c),
+                ));
+                cx.set("element", Value::new(e));
+                Ok(())
+            }))
+        },
+    )?;
+    r.register(
+        NodeSpec::new("convert.collider", "a kinematic object: a mesh placed by an optional (animated) transform; shown in previews, never simulated")
+            .input("mesh", "mesh", "the object's mesh, in its own frame")
+            .input_default("transform", "transform", json!(null), "where the object is at this frame (identity when unconnected)")
+            .output("element", "element", "the collider element")
+            .param(ParamSpec::string("name", "collider").doc("element name, unique in the scene")),
+        |p| {
+            check_name(p)?;
+            Ok(Kernel::from_fn(|cx| {
+                let mut m = cx.input_as::<Mesh>("mesh")?;
+                let t = match cx.input_opt("transform")? {
+                    Some(v) => v.get::<Transform>().copied(),
+                    None => None,
+                };
+                if let Some(t) = t {
+                    for p in &mut m.positions {
+                        let q = t.transform_point(&nalgebra::Point3::new(p[0], p[1], p[2]));
+                        *p = [q.x, q.y, q.z];
+                    }
+                }
+                let mut e = SceneElement::new(cx.params().str("name"), ElementKind::Collider, Geometry::Mesh(m));
+                e.transform = t;
+                cx.set("element", Value::new(e));
+                Ok(())
+            }))
+        },
+    )?;
+    r.register(
+        NodeSpec::new("convert.attachment", "attaches vertices of an element to where they are at the start frame, carried by an optional animated transform")
+            .input("target", "element", "the element whose vertices are attached")
+            .input_default("transform", "transform", json!(null), "moves the attachment points (fixed in place when unconnected)")
+            .output("element", "element", "a data-less attachment element")
+            .param(ParamSpec::string("name", "attachment").doc("element name, unique in the scene"))
+            .param(ParamSpec::choice("select", &["vertices", "curve_roots"], "vertices").doc("vertices: the listed indices; curve_roots: the first vertices of every curve"))
+            .param(ParamSpec::floats("vertices", &[]).doc("vertex indices (select = vertices)"))
+            .param(ParamSpec::int("root_vertices", 2).ge(1.0).le(16.0).doc("vertices per curve root (2 also clamps the root's direction)"))
+            .param(ParamSpec::choice("mode", &["hard", "spring"], "hard").doc("hard: exactly; spring: a zero-length spring"))
+            .param(ParamSpec::float("stiffness", 1e3).gt(0.0).unit("N/m").doc("spring stiffness (mode = spring)")),
+        |p| {
+            check_name(p)?;
+            indices(p, "vertices")?;
+            Ok(Kernel::from_fn(attachment))
+        },
+    )
+}
+
+fn attachment(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
+    let target = cx.input_as::<SceneElement>("target")?;
+    let p = cx.params().clone();
+    let vertices = match p.str("select") {
+        "curve_roots" => match &*target.geometry {
+            Geometry::Curves(c) => {
+                let k = p.i64("root_vertices") as u32;
+                (0..c.len())
+                    .flat_map(|i| c.offsets[i]..(c.offsets[i] + k).min(c.offsets[i + 1]))
+                    .collect()
+            }
+            _ => {
+                return Err(NodeError::Input {
+                    port: "target".into(),
+                    message: format!(
+                        "'{}' has no curves to take roots from (select = curve_roots)",
+                        target.name
+                    ),
+                });
+            }
+        },
+        _ => indices(&p, "vertices").map_err(NodeError::Failed)?,
+    };
+    let n = target.vertex_count();
+    if let Some(v) = vertices.iter().find(|&&v| v as usize >= n) {
+        return Err(NodeError::Failed(format!(
+            "param 'vertices': vertex {v} is out of range ('{}' has {n} vertices)",
+            target.name
+        )));
+    }
+    let mode = if p.str("mode") == "spring" {
+        AttachmentMode::Spring(p.f64("stiffness"))
+    } else {
+        AttachmentMode::Hard
+    };
+    let mut e = SceneElement::new(p.str("name"), ElementKind::Attachment, Geometry::None);
+    e.secs.insert(Attachment {
+        target: target.name.clone(),
+        vertices,
+        mode,
+    });
+    e.transform = match cx.input_opt("transform")? {
+        Some(v) => v.get::<Transform>().copied(),
+        None => None,
+    };
+    cx.set("element", Value::new(e));
+    Ok(())
+}

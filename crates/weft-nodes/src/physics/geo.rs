@@ -1,0 +1,215 @@
+//! Geometry nodes: procedural meshes and strands, OBJ files.
+
+use weft_graph::{Kernel, NodeError, NodeSpec, ParamSpec, Registry, RegistryError, Value};
+use weft_scene::procedural::{Plane, grid, sphere, strands_on_sphere};
+
+pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
+    r.register(
+        NodeSpec::new(
+            "geo.grid",
+            "a rectangular cloth grid with alternating diagonals",
+        )
+        .output("mesh", "mesh", "the grid")
+        .param(
+            ParamSpec::float("width", 1.0)
+                .gt(0.0)
+                .unit("m")
+                .doc("extent along x"),
+        )
+        .param(
+            ParamSpec::float("height", 1.0)
+                .gt(0.0)
+                .unit("m")
+                .doc("extent along z (plane xz) or y (plane xy)"),
+        )
+        .param(
+            ParamSpec::int("nx", 16)
+                .ge(2.0)
+                .le(4096.0)
+                .doc("vertices along the width"),
+        )
+        .param(
+            ParamSpec::int("ny", 16)
+                .ge(2.0)
+                .le(4096.0)
+                .doc("vertices along the height"),
+        )
+        .param(ParamSpec::choice("plane", &["xz", "xy"], "xz").doc("xz: horizontal; xy: vertical"))
+        .param(
+            ParamSpec::vec3("center", [0.0; 3])
+                .unit("m")
+                .doc("centre of the grid"),
+        ),
+        |_| {
+            Ok(Kernel::from_fn(|cx| {
+                let p = cx.params();
+                let plane = if p.str("plane") == "xy" {
+                    Plane::Xy
+                } else {
+                    Plane::Xz
+                };
+                let m = grid(
+                    [p.f64("width"), p.f64("height")],
+                    [p.i64("nx") as usize, p.i64("ny") as usize],
+                    plane,
+                    p.vec3("center"),
+                );
+                cx.set("mesh", Value::new(m));
+                Ok(())
+            }))
+        },
+    )?;
+    r.register(
+        NodeSpec::new("geo.sphere", "a UV sphere mesh (heads, colliders, display)")
+            .output("mesh", "mesh", "the sphere")
+            .param(ParamSpec::vec3("center", [0.0; 3]).unit("m").doc("centre"))
+            .param(
+                ParamSpec::float("radius", 0.1)
+                    .gt(0.0)
+                    .unit("m")
+                    .doc("radius"),
+            )
+            .param(
+                ParamSpec::int("rings", 16)
+                    .ge(2.0)
+                    .le(1024.0)
+                    .doc("latitude bands"),
+            )
+            .param(
+                ParamSpec::int("sectors", 24)
+                    .ge(3.0)
+                    .le(1024.0)
+                    .doc("longitude bands"),
+            ),
+        |_| {
+            Ok(Kernel::from_fn(|cx| {
+                let p = cx.params();
+                let m = sphere(
+                    p.vec3("center"),
+                    p.f64("radius"),
+                    p.i64("rings") as usize,
+                    p.i64("sectors") as usize,
+                );
+                cx.set("mesh", Value::new(m));
+                Ok(())
+            }))
+        },
+    )?;
+    r.register(
+        NodeSpec::new(
+            "geo.strands",
+            "straight strands grown along the normals of a sphere cap (even Fibonacci spacing)",
+        )
+        .output("curves", "curves", "the strands")
+        .param(
+            ParamSpec::vec3("center", [0.0; 3])
+                .unit("m")
+                .doc("sphere centre"),
+        )
+        .param(
+            ParamSpec::float("radius", 0.1)
+                .gt(0.0)
+                .unit("m")
+                .doc("sphere radius (roots lie on it)"),
+        )
+        .param(
+            ParamSpec::int("count", 100)
+                .ge(1.0)
+                .le(10_000_000.0)
+                .doc("number of strands"),
+        )
+        .param(
+            ParamSpec::int("segments", 16)
+                .ge(1.0)
+                .le(10_000.0)
+                .doc("segments per strand"),
+        )
+        .param(
+            ParamSpec::float("length", 0.2)
+                .gt(0.0)
+                .unit("m")
+                .doc("strand length"),
+        )
+        .param(
+            ParamSpec::float("cap_degrees", 60.0)
+                .gt(0.0)
+                .le(180.0)
+                .unit("deg")
+                .doc("roots within this angle of the +y pole"),
+        ),
+        |_| {
+            Ok(Kernel::from_fn(|cx| {
+                let p = cx.params();
+                let c = strands_on_sphere(
+                    p.vec3("center"),
+                    p.f64("radius"),
+                    p.i64("count") as usize,
+                    p.i64("segments") as usize,
+                    p.f64("length"),
+                    p.f64("cap_degrees"),
+                );
+                cx.set("curves", Value::new(c));
+                Ok(())
+            }))
+        },
+    )?;
+    r.register(
+        NodeSpec::new(
+            "geo.obj",
+            "a triangle mesh read from an OBJ file (all objects merged, faces triangulated)",
+        )
+        .output("mesh", "mesh", "the mesh")
+        .param(
+            ParamSpec::string("path", "")
+                .required()
+                .doc("OBJ file (relative to the working directory)"),
+        ),
+        |p| {
+            if p.str("path").is_empty() {
+                return Err("param 'path': must not be empty".into());
+            }
+            // The file's identity (path, size, modification time) enters the node's hash, so a
+            // disk cache downstream is rewritten when the file changes between runs.
+            let meta = std::fs::metadata(p.str("path")).ok();
+            let stamp = format!(
+                "{}|{:?}|{:?}",
+                p.str("path"),
+                meta.as_ref().map(|m| m.len()),
+                meta.and_then(|m| m.modified().ok())
+            );
+            Ok(Kernel::Compute(Box::new(ObjFile {
+                hash: xxhash(stamp.as_bytes()),
+            })))
+        },
+    )
+}
+
+/// Reads its file when evaluated; its hash includes the file's size and modification time at
+/// load, so caches downstream notice an edited file.
+struct ObjFile {
+    hash: u128,
+}
+
+fn xxhash(b: &[u8]) -> u128 {
+    // FNV-1a, 128-bit: a stable hash with no extra dependency (this only needs to change when
+    // the stamp changes).
+    let mut h: u128 = 0x6c62272e07bb014262b821756295c58d;
+    for &x in b {
+        h ^= x as u128;
+        h = h.wrapping_mul(0x0000000001000000000000000000013B);
+    }
+    h
+}
+
+impl weft_graph::Compute for ObjFile {
+    fn kernel_hash(&self) -> u128 {
+        self.hash
+    }
+
+    fn compute(&mut self, cx: &mut weft_graph::EvalCx<'_>) -> Result<(), NodeError> {
+        let path = std::path::PathBuf::from(cx.params().str("path"));
+        let m = weft_scene::read_obj(&path).map_err(|e| NodeError::Failed(e.to_string()))?;
+        cx.set("mesh", Value::new(m));
+        Ok(())
+    }
+}

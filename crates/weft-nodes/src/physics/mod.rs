@@ -1,0 +1,28 @@
+//! Physics nodes: geometry, Scene Element conversion, SECs, Behaviors, the solid solver and
+//! outputs. Port types for scene data are registered here too.
+
+mod behaviors;
+mod convert;
+mod geo;
+mod measure;
+mod output;
+mod secs;
+mod solver;
+mod types;
+mod xform;
+
+pub use types::{BehaviorValue, Scene};
+
+use weft_graph::{Registry, RegistryError};
+
+pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
+    types::register(r)?;
+    geo::register(r)?;
+    convert::register(r)?;
+    secs::register(r)?;
+    behaviors::register(r)?;
+    xform::register(r)?;
+    measure::register(r)?;
+    output::register(r)?;
+    solver::register(r)
+}

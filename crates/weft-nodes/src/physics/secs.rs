@@ -1,0 +1,143 @@
+//! SEC nodes: each attaches one typed parameter bundle to an element. Parameter ranges are
+//! checked when the graph loads, so a negative stiffness or ν ≥ 0.5 is a load error naming the
+//! node and parameter. Defaults are the SEC types' documented defaults.
+
+use weft_graph::{Kernel, NodeSpec, ParamSpec, Params, Registry, RegistryError, Value};
+use weft_scene::{Density, DiscreteShell, Rod, SceneElement, Sec};
+
+fn attach<S: Sec + Clone>(
+    name: &str,
+    doc: &str,
+    params: Vec<ParamSpec>,
+    build: fn(&Params) -> S,
+    r: &mut Registry,
+) -> Result<(), RegistryError> {
+    let mut spec = NodeSpec::new(name, doc)
+        .input("element", "element", "the element to carry the SEC")
+        .output(
+            "element",
+            "element",
+            "the same element with the SEC attached (replacing one of the same type)",
+        );
+    for p in params {
+        spec = spec.param(p);
+    }
+    r.register(spec, move |_| {
+        Ok(Kernel::from_fn(move |cx| {
+            let mut e = cx.input_as::<SceneElement>("element")?;
+            e.secs.insert(build(cx.params()));
+            cx.set("element", Value::new(e));
+            Ok(())
+        }))
+    })
+}
+
+pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
+    let d = DiscreteShell::default();
+    attach(
+        "sec.discrete_shell",
+        "Discrete Shell SEC: membrane (StVK, optionally orthotropic) and bending of cloth",
+        vec![
+            ParamSpec::float("youngs_modulus", d.youngs_modulus)
+                .gt(0.0)
+                .unit("Pa")
+                .doc("Young's modulus E"),
+            ParamSpec::float("poisson_ratio", d.poisson_ratio)
+                .ge(0.0)
+                .lt(0.5)
+                .doc("Poisson's ratio ν"),
+            ParamSpec::float("thickness", d.thickness)
+                .gt(0.0)
+                .unit("m")
+                .doc("shell thickness t"),
+            ParamSpec::float("bend_scale", d.bend_scale)
+                .ge(0.0)
+                .doc("multiplier on D = E t³/(12(1 − ν²)); 0 disables bending"),
+            ParamSpec::float("damping", d.damping)
+                .ge(0.0)
+                .unit("1/s")
+                .doc("mass-proportional damping"),
+            ParamSpec::string("rest_channel", &d.rest_channel)
+                .doc("channel with rest positions (initial positions when absent)"),
+            ParamSpec::float("warp_scale", d.warp_scale)
+                .gt(0.0)
+                .doc("stiffness multiplier along the warp"),
+            ParamSpec::float("weft_scale", d.weft_scale)
+                .gt(0.0)
+                .doc("stiffness multiplier along the weft"),
+            ParamSpec::float("shear_scale", d.shear_scale)
+                .gt(0.0)
+                .doc("shear stiffness multiplier"),
+            ParamSpec::vec3("warp_direction", d.warp_direction).doc("warp direction in rest space"),
+        ],
+        |p| DiscreteShell {
+            youngs_modulus: p.f64("youngs_modulus"),
+            poisson_ratio: p.f64("poisson_ratio"),
+            thickness: p.f64("thickness"),
+            bend_scale: p.f64("bend_scale"),
+            damping: p.f64("damping"),
+            rest_channel: p.str("rest_channel").to_string(),
+            warp_scale: p.f64("warp_scale"),
+            weft_scale: p.f64("weft_scale"),
+            shear_scale: p.f64("shear_scale"),
+            warp_direction: p.vec3("warp_direction"),
+        },
+        r,
+    )?;
+    let d = Rod::default();
+    attach(
+        "sec.rod",
+        "Rod SEC: stretching and bending of hair",
+        vec![
+            ParamSpec::float("youngs_modulus", d.youngs_modulus)
+                .gt(0.0)
+                .unit("Pa")
+                .doc("Young's modulus E"),
+            ParamSpec::float("radius", d.radius)
+                .gt(0.0)
+                .unit("m")
+                .doc("fibre radius r"),
+            ParamSpec::float("stretch_scale", d.stretch_scale)
+                .gt(0.0)
+                .doc("multiplier on the axial stiffness E·πr²"),
+            ParamSpec::float("bend_scale", d.bend_scale)
+                .ge(0.0)
+                .doc("multiplier on the bending stiffness E·πr⁴/4; 0 disables bending"),
+            ParamSpec::float("damping", d.damping)
+                .ge(0.0)
+                .unit("1/s")
+                .doc("mass-proportional damping"),
+            ParamSpec::string("rest_channel", &d.rest_channel)
+                .doc("channel with rest positions (initial positions when absent)"),
+        ],
+        |p| Rod {
+            youngs_modulus: p.f64("youngs_modulus"),
+            radius: p.f64("radius"),
+            stretch_scale: p.f64("stretch_scale"),
+            bend_scale: p.f64("bend_scale"),
+            damping: p.f64("damping"),
+            rest_channel: p.str("rest_channel").to_string(),
+        },
+        r,
+    )?;
+    let d = Density::default();
+    attach(
+        "sec.density",
+        "Density SEC: mass per area of cloth and per length of hair",
+        vec![
+            ParamSpec::float("area_density", d.area_density)
+                .gt(0.0)
+                .unit("kg/m²")
+                .doc("cloth mass per rest area"),
+            ParamSpec::float("line_density", d.line_density)
+                .gt(0.0)
+                .unit("kg/m")
+                .doc("hair mass per rest length"),
+        ],
+        |p| Density {
+            area_density: p.f64("area_density"),
+            line_density: p.f64("line_density"),
+        },
+        r,
+    )
+}

@@ -1,0 +1,171 @@
+//! `solver.solid`: the stateful cloth and hair solver.
+//!
+//! At the start frame it compiles (scene, Behavior tree) into a solid system; each later frame
+//! is one step of the [`SolidStepper`] from the previous frame's state, reading the scene at
+//! the new frame (so attachments follow animated transforms). The state checkpointed per frame
+//! is the simulation state plus the output scene; the compiled system rides along (shared), so
+//! resuming from any checkpoint continues exactly.
+
+use super::types::Scene;
+use std::collections::VecDeque;
+use std::sync::Arc;
+use weft_graph::{
+    EvalCx, Kernel, NodeError, NodeSpec, ParamSpec, Params, Registry, RegistryError, Step,
+    TimeClass, Value,
+};
+use weft_scene::SceneElement;
+use weft_sim::{
+    BehaviorTree, Compiled, FrameStats, SimState, SolidStepper, StepperSettings, compile,
+};
+use weft_solid::{Method, Settings};
+
+#[derive(Clone)]
+struct SolverState {
+    compiled: Arc<Compiled>,
+    sim: SimState,
+    scene: Value,
+}
+
+struct SolidSolver {
+    stepper: Option<SolidStepper>,
+    frames: VecDeque<(i64, FrameStats)>,
+    compiled: Option<Arc<Compiled>>,
+}
+
+fn settings(p: &Params) -> StepperSettings {
+    let method = match p.str("method") {
+        "explicit" => Method::Explicit,
+        "linearized" => Method::Linearized,
+        _ => Method::Newton,
+    };
+    StepperSettings {
+        substeps: p.i64("substeps").max(1) as usize,
+        max_retries: p.i64("max_retries").max(0) as usize,
+        solver: Settings {
+            method,
+            tolerance: p.f64("tolerance"),
+            max_iterations: p.i64("max_iterations").max(1) as usize,
+        },
+    }
+}
+
+fn scene_input(cx: &mut EvalCx<'_>) -> Result<Scene, NodeError> {
+    Ok(cx
+        .inputs("elements")?
+        .iter()
+        .filter_map(|v| v.get::<SceneElement>().cloned())
+        .collect())
+}
+
+impl SolidSolver {
+    fn stepper(
+        &mut self,
+        compiled: &Arc<Compiled>,
+        p: &Params,
+    ) -> Result<&mut SolidStepper, NodeError> {
+        let fresh = self
+            .stepper
+            .as_ref()
+            .is_none_or(|s| !std::ptr::eq(s.compiled(), &**compiled));
+        if fresh {
+            self.stepper = Some(
+                SolidStepper::new(compiled.clone(), settings(p))
+                    .map_err(|e| NodeError::Failed(e.to_string()))?,
+            );
+        }
+        Ok(self.stepper.as_mut().expect("just built"))
+    }
+}
+
+impl Step for SolidSolver {
+    fn init(&mut self, cx: &mut EvalCx<'_>) -> Result<Value, NodeError> {
+        let scene = scene_input(cx)?;
+        let tree = cx.input_as::<BehaviorTree>("tree")?;
+        let compiled =
+            Arc::new(compile(&scene, &tree).map_err(|e| NodeError::Failed(e.to_string()))?);
+        for w in &compiled.warnings {
+            cx.warn(w.clone());
+        }
+        self.compiled = Some(compiled.clone());
+        self.frames.clear();
+        let params = cx.params().clone();
+        let stepper = self.stepper(&compiled, &params)?;
+        let sim = stepper.initial_state(&scene);
+        let out = stepper.scene_at(&scene, &sim);
+        Ok(Value::new(SolverState {
+            compiled,
+            sim,
+            scene: Value::new(out),
+        }))
+    }
+
+    fn step(&mut self, state: &Value, cx: &mut EvalCx<'_>) -> Result<Value, NodeError> {
+        let prev = state.get::<SolverState>().expect("solver state");
+        let scene = scene_input(cx)?;
+        let (frame, dt) = (cx.frame(), 1.0 / cx.context().fps);
+        let params = cx.params().clone();
+        let stepper = self.stepper(&prev.compiled, &params)?;
+        let (sim, stats) = stepper
+            .advance(&prev.sim, &scene, frame, dt)
+            .map_err(|e| NodeError::Failed(e.to_string()))?;
+        if stats.retries > 0 {
+            cx.warn(format!(
+                "{} substep(s) failed and were retried with smaller steps",
+                stats.retries
+            ));
+        }
+        let out = stepper.scene_at(&scene, &sim);
+        if self.frames.len() == 1024 {
+            self.frames.pop_front();
+        }
+        self.frames.push_back((frame, stats));
+        Ok(Value::new(SolverState {
+            compiled: prev.compiled.clone(),
+            sim,
+            scene: Value::new(out),
+        }))
+    }
+
+    fn outputs(&mut self, state: &Value, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
+        let s = state.get::<SolverState>().expect("solver state");
+        cx.set("scene", s.scene.clone());
+        Ok(())
+    }
+
+    fn stats_json(&self) -> Option<serde_json::Value> {
+        let frames: Vec<_> = self
+            .frames
+            .iter()
+            .map(|(f, s)| {
+                serde_json::json!({
+                    "frame": f, "steps": s.steps, "retries": s.retries, "newton_iterations": s.newton_iterations,
+                    "max_newton_iterations": s.max_newton_iterations, "max_residual": s.max_residual,
+                    "assembly_seconds": s.assembly_seconds, "factor_seconds": s.factor_seconds,
+                    "solve_seconds": s.solve_seconds, "seconds": s.seconds,
+                })
+            })
+            .collect();
+        let c = self.compiled.as_ref();
+        Some(serde_json::json!({
+            "terms": c.map(|c| serde_json::json!(c.terms)),
+            "warnings": c.map(|c| c.warnings.clone()),
+            "solid_frames": frames,
+        }))
+    }
+}
+
+pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
+    r.register(
+        NodeSpec::new("solver.solid", "steps cloth and hair: implicit Euler by projected Newton (or explicit / linearized), with substeps and retries")
+            .time(TimeClass::Stateful)
+            .input_multi("elements", "element", "the scene's elements (cloth, hair, attachments, colliders)")
+            .input("tree", "behavior_tree", "what is simulated")
+            .output("scene", "scene", "the elements at this frame")
+            .param(ParamSpec::int("substeps", 4).ge(1.0).le(100_000.0).doc("steps per frame"))
+            .param(ParamSpec::choice("method", &["newton", "linearized", "explicit"], "newton").doc("newton: implicit Euler to tolerance; linearized: one Newton step; explicit: symplectic Euler"))
+            .param(ParamSpec::float("tolerance", 1e-6).gt(0.0).unit("m/s").doc("Newton stops when a further iteration would change velocities by less"))
+            .param(ParamSpec::int("max_iterations", 50).ge(1.0).le(10_000.0).doc("Newton iteration limit per step"))
+            .param(ParamSpec::int("max_retries", 4).ge(0.0).le(16.0).doc("levels of step halving when a step fails")),
+        |_| Ok(Kernel::Step(Box::new(SolidSolver { stepper: None, frames: VecDeque::new(), compiled: None }))),
+    )
+}

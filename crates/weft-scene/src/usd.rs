@@ -1,0 +1,767 @@
+//! USD ASCII (`.usda`) export of animated meshes and curves.
+//!
+//! A [`UsdaScene`] collects prims (triangle meshes as `Mesh`, strands as linear
+//! `BasisCurves`) with fixed topology, then per-frame positions as time samples, and writes one
+//! `.usda` layer: a `World` Xform (the default prim) holding every prim, with `points` (and
+//! `extent`) time-sampled. The stage is Y-up, in metres, with `timeCodesPerSecond` set to the
+//! frame rate, so frame numbers are time codes.
+//!
+//! ```
+//! use weft_scene::{Mesh, usd::UsdaScene};
+//! let mesh = Mesh {
+//!     positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+//!     triangles: vec![[0, 1, 2]],
+//! };
+//! let mut scene = UsdaScene::new(24.0)?;
+//! let cloth = scene.add_mesh("cloth", &mesh)?;
+//! scene.set_points(cloth, 0, &mesh.positions)?;
+//! let text = scene.to_string();
+//! assert!(text.starts_with("#usda 1.0"));
+//! # Ok::<(), weft_scene::usd::UsdError>(())
+//! ```
+//!
+//! USD stores `point3f` and `float` values in single precision, so positions and widths are
+//! rounded to `f32` and written with the shortest text that reads back to that exact `f32`:
+//! full precision for the attribute type, without meaningless extra digits.
+
+use std::collections::BTreeMap;
+use std::fmt;
+use std::io::{self, Write};
+
+use crate::geometry::{Curves, Mesh};
+
+/// Why a prim or a frame could not be added to a [`UsdaScene`].
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum UsdError {
+    /// The frame rate is not a finite positive number.
+    #[error("frames per second must be a finite positive number, got {0}")]
+    InvalidFps(f64),
+    /// A prim's topology is inconsistent (index out of range, bad curve offsets, short curve).
+    #[error("prim `{prim}`: {message}")]
+    BadTopology {
+        /// Prim name (sanitized).
+        prim: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// Curve widths have neither one value nor one per vertex, or a width is not finite.
+    #[error("prim `{prim}`: {message}")]
+    BadWidths {
+        /// Prim name (sanitized).
+        prim: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// Positions for a frame do not have one entry per vertex of the prim.
+    #[error("prim `{prim}`, frame {frame}: expected {expected} positions, got {found}")]
+    PointCount {
+        /// Prim name (sanitized).
+        prim: String,
+        /// The frame.
+        frame: i64,
+        /// Vertex count of the prim.
+        expected: usize,
+        /// Positions given.
+        found: usize,
+    },
+    /// A position is NaN, infinite, or too large for single precision.
+    #[error(
+        "prim `{prim}`{}: vertex {vertex} has a coordinate that is not finite in single \
+         precision",
+        frame.map(|f| format!(", frame {f}")).unwrap_or_default()
+    )]
+    NonFinite {
+        /// Prim name (sanitized).
+        prim: String,
+        /// The frame (`None` for the rest positions given when adding the prim).
+        frame: Option<i64>,
+        /// Index of the vertex.
+        vertex: usize,
+    },
+    /// [`UsdaScene::add_frame`] got a number of position sets different from the prim count.
+    #[error("frame {frame}: expected positions for {expected} prims, got {found}")]
+    PrimCount {
+        /// The frame.
+        frame: i64,
+        /// Number of prims in the scene.
+        expected: usize,
+        /// Position sets given.
+        found: usize,
+    },
+    /// A [`PrimId`] that does not belong to this scene.
+    #[error("no prim with id {0} in this scene")]
+    UnknownPrim(usize),
+}
+
+/// Handle to a prim of a [`UsdaScene`], in the order prims were added.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct PrimId(pub usize);
+
+#[derive(Debug, Clone)]
+enum PrimKind {
+    Mesh {
+        triangles: Vec<[u32; 3]>,
+    },
+    Curves {
+        counts: Vec<u32>,
+        widths: Option<Vec<f32>>,
+    },
+}
+
+#[derive(Debug, Clone)]
+struct Prim {
+    name: String,
+    kind: PrimKind,
+    /// Positions given when the prim was added; written as the default value when the prim has
+    /// no time samples.
+    rest: Vec<[f32; 3]>,
+    samples: BTreeMap<i64, Vec<[f32; 3]>>,
+}
+
+/// An animated USD scene being built, written as `.usda` text.
+///
+/// Add prims with [`add_mesh`](Self::add_mesh) / [`add_curves`](Self::add_curves), then
+/// positions per frame with [`add_frame`](Self::add_frame) (all prims) or
+/// [`set_points`](Self::set_points) (one prim); format with `to_string()` (via [`fmt::Display`])
+/// or [`write`](Self::write).
+#[derive(Debug, Clone)]
+pub struct UsdaScene {
+    fps: f64,
+    prims: Vec<Prim>,
+}
+
+/// Turns `name` into a valid USD identifier (`[A-Za-z_][A-Za-z0-9_]*`): every other character
+/// becomes `_`, a leading digit gets a `_` prefix, and an empty name becomes `_`.
+///
+/// `"my cloth-1"` gives `"my_cloth_1"`, `"1abc"` gives `"_1abc"`.
+pub fn sanitize_identifier(name: &str) -> String {
+    let mut out: String = name
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if out.is_empty() || out.starts_with(|c: char| c.is_ascii_digit()) {
+        out.insert(0, '_');
+    }
+    out
+}
+
+/// Converts positions to `f32`, reporting the first vertex that is not finite in `f32`.
+fn to_f32_points(positions: &[[f64; 3]]) -> Result<Vec<[f32; 3]>, usize> {
+    positions
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let q = p.map(|c| c as f32);
+            if q.iter().all(|c| c.is_finite()) {
+                Ok(q)
+            } else {
+                Err(i)
+            }
+        })
+        .collect()
+}
+
+impl UsdaScene {
+    /// An empty scene at `fps` frames (time codes) per second.
+    ///
+    /// # Errors
+    ///
+    /// [`UsdError::InvalidFps`] unless `fps` is finite and positive.
+    pub fn new(fps: f64) -> Result<Self, UsdError> {
+        if !(fps.is_finite() && fps > 0.0) {
+            return Err(UsdError::InvalidFps(fps));
+        }
+        Ok(UsdaScene {
+            fps,
+            prims: Vec::new(),
+        })
+    }
+
+    /// Frames (time codes) per second.
+    pub fn fps(&self) -> f64 {
+        self.fps
+    }
+
+    /// Number of prims.
+    pub fn prim_count(&self) -> usize {
+        self.prims.len()
+    }
+
+    /// The name a prim is written with: `name` sanitized by [`sanitize_identifier`], with a
+    /// `_2`, `_3`… suffix when another prim already has it.
+    pub fn prim_name(&self, id: PrimId) -> Option<&str> {
+        self.prims.get(id.0).map(|p| p.name.as_str())
+    }
+
+    /// First and last frame with a time sample, over all prims.
+    pub fn frame_range(&self) -> Option<(i64, i64)> {
+        let first = self
+            .prims
+            .iter()
+            .filter_map(|p| p.samples.keys().next())
+            .min()?;
+        let last = self
+            .prims
+            .iter()
+            .filter_map(|p| p.samples.keys().next_back())
+            .max()?;
+        Some((*first, *last))
+    }
+
+    fn unique_name(&self, name: &str) -> String {
+        let base = sanitize_identifier(name);
+        let taken = |n: &str| self.prims.iter().any(|p| p.name == n);
+        if !taken(&base) {
+            return base;
+        }
+        (2..)
+            .map(|k| format!("{base}_{k}"))
+            .find(|n| !taken(n))
+            .unwrap_or(base)
+    }
+
+    /// Adds a triangle mesh prim: topology from `mesh.triangles` (three vertices per face,
+    /// counter-clockwise = USD's default right-handed orientation), and `mesh.positions` as the
+    /// points written when no frame is added for it.
+    ///
+    /// # Errors
+    ///
+    /// [`UsdError::BadTopology`] for a triangle index out of range, [`UsdError::NonFinite`] for
+    /// a bad position.
+    pub fn add_mesh(&mut self, name: &str, mesh: &Mesh) -> Result<PrimId, UsdError> {
+        let name = self.unique_name(name);
+        let n = mesh.positions.len();
+        if let Some((k, t)) = mesh
+            .triangles
+            .iter()
+            .enumerate()
+            .find(|(_, t)| t.iter().any(|&i| i as usize >= n))
+        {
+            return Err(UsdError::BadTopology {
+                prim: name,
+                message: format!(
+                    "triangle {k} {t:?} refers to a vertex out of range ({n} vertices)"
+                ),
+            });
+        }
+        let rest = to_f32_points(&mesh.positions).map_err(|vertex| UsdError::NonFinite {
+            prim: name.clone(),
+            frame: None,
+            vertex,
+        })?;
+        self.prims.push(Prim {
+            name,
+            kind: PrimKind::Mesh {
+                triangles: mesh.triangles.clone(),
+            },
+            rest,
+            samples: BTreeMap::new(),
+        });
+        Ok(PrimId(self.prims.len() - 1))
+    }
+
+    /// Adds a linear `BasisCurves` prim: one curve per curve of `curves` (each needs at least two
+    /// vertices), `curves.positions` as the points written when no frame is added for it, and
+    /// optional widths [m]: one value (constant) or one per vertex.
+    ///
+    /// # Errors
+    ///
+    /// [`UsdError::BadTopology`] for invalid offsets or a curve with fewer than two vertices,
+    /// [`UsdError::BadWidths`] for widths of the wrong length or non-finite/negative widths,
+    /// [`UsdError::NonFinite`] for a bad position.
+    pub fn add_curves(
+        &mut self,
+        name: &str,
+        curves: &Curves,
+        widths: Option<&[f64]>,
+    ) -> Result<PrimId, UsdError> {
+        let name = self.unique_name(name);
+        let bad_topology = |message: String| UsdError::BadTopology {
+            prim: name.clone(),
+            message,
+        };
+        crate::obj::check_offsets(curves).map_err(bad_topology)?;
+        let counts: Vec<u32> = curves.offsets.windows(2).map(|p| p[1] - p[0]).collect();
+        if let Some(k) = counts.iter().position(|&c| c < 2) {
+            return Err(bad_topology(format!(
+                "curve {k} has {} vertices; a linear curve needs at least 2",
+                counts[k]
+            )));
+        }
+        let n = curves.positions.len();
+        let widths = match widths {
+            None => None,
+            Some(w) => {
+                if w.len() != 1 && w.len() != n {
+                    return Err(UsdError::BadWidths {
+                        prim: name,
+                        message: format!(
+                            "{} widths given; expected 1 (constant) or {n} (one per vertex)",
+                            w.len()
+                        ),
+                    });
+                }
+                let w32: Vec<f32> = w.iter().map(|&x| x as f32).collect();
+                if let Some(k) = w32.iter().position(|x| !(x.is_finite() && *x >= 0.0)) {
+                    return Err(UsdError::BadWidths {
+                        prim: name,
+                        message: format!("width {k} is {}; widths must be finite and >= 0", w[k]),
+                    });
+                }
+                Some(w32)
+            }
+        };
+        let rest = to_f32_points(&curves.positions).map_err(|vertex| UsdError::NonFinite {
+            prim: name.clone(),
+            frame: None,
+            vertex,
+        })?;
+        self.prims.push(Prim {
+            name,
+            kind: PrimKind::Curves { counts, widths },
+            rest,
+            samples: BTreeMap::new(),
+        });
+        Ok(PrimId(self.prims.len() - 1))
+    }
+
+    fn checked_points(
+        &self,
+        prim: usize,
+        frame: i64,
+        positions: &[[f64; 3]],
+    ) -> Result<Vec<[f32; 3]>, UsdError> {
+        let p = self.prims.get(prim).ok_or(UsdError::UnknownPrim(prim))?;
+        if positions.len() != p.rest.len() {
+            return Err(UsdError::PointCount {
+                prim: p.name.clone(),
+                frame,
+                expected: p.rest.len(),
+                found: positions.len(),
+            });
+        }
+        to_f32_points(positions).map_err(|vertex| UsdError::NonFinite {
+            prim: p.name.clone(),
+            frame: Some(frame),
+            vertex,
+        })
+    }
+
+    /// Sets the positions of one prim at `frame` (replacing an earlier sample at that frame).
+    ///
+    /// # Errors
+    ///
+    /// [`UsdError::UnknownPrim`], [`UsdError::PointCount`] when the vertex count differs from
+    /// the prim's, [`UsdError::NonFinite`]; the scene is unchanged on error.
+    pub fn set_points(
+        &mut self,
+        prim: PrimId,
+        frame: i64,
+        positions: &[[f64; 3]],
+    ) -> Result<(), UsdError> {
+        let points = self.checked_points(prim.0, frame, positions)?;
+        self.prims[prim.0].samples.insert(frame, points);
+        Ok(())
+    }
+
+    /// Adds a frame: `positions[k]` are the positions of the k-th prim added, at `frame`
+    /// (replacing earlier samples at that frame).
+    ///
+    /// # Errors
+    ///
+    /// [`UsdError::PrimCount`] unless there is one position set per prim, and the errors of
+    /// [`set_points`](Self::set_points); the scene is unchanged on error.
+    pub fn add_frame(&mut self, frame: i64, positions: &[&[[f64; 3]]]) -> Result<(), UsdError> {
+        if positions.len() != self.prims.len() {
+            return Err(UsdError::PrimCount {
+                frame,
+                expected: self.prims.len(),
+                found: positions.len(),
+            });
+        }
+        let all = positions
+            .iter()
+            .enumerate()
+            .map(|(k, p)| self.checked_points(k, frame, p))
+            .collect::<Result<Vec<_>, _>>()?;
+        for (prim, points) in self.prims.iter_mut().zip(all) {
+            prim.samples.insert(frame, points);
+        }
+        Ok(())
+    }
+
+    /// Writes the scene as `.usda` text.
+    ///
+    /// # Errors
+    ///
+    /// I/O errors from `w`.
+    pub fn write(&self, w: &mut impl Write) -> io::Result<()> {
+        write!(w, "{self}")
+    }
+}
+
+/// Comma-separated items on one line, each formatted by `item`.
+fn list<T>(
+    f: &mut fmt::Formatter<'_>,
+    items: impl IntoIterator<Item = T>,
+    mut item: impl FnMut(&mut fmt::Formatter<'_>, T) -> fmt::Result,
+) -> fmt::Result {
+    f.write_str("[")?;
+    for (k, x) in items.into_iter().enumerate() {
+        if k > 0 {
+            f.write_str(", ")?;
+        }
+        item(f, x)?;
+    }
+    f.write_str("]")
+}
+
+fn point(f: &mut fmt::Formatter<'_>, p: &[f32; 3]) -> fmt::Result {
+    // `{}` on f32 is the shortest text that reads back to the same f32.
+    write!(f, "({}, {}, {})", p[0], p[1], p[2])
+}
+
+fn points_list(f: &mut fmt::Formatter<'_>, points: &[[f32; 3]]) -> fmt::Result {
+    list(f, points, point)
+}
+
+/// Bounds padded by `pad`, as a USD `extent` value; `[]` for no points.
+fn extent_list(f: &mut fmt::Formatter<'_>, points: &[[f32; 3]], pad: f32) -> fmt::Result {
+    let Some(first) = points.first() else {
+        return f.write_str("[]");
+    };
+    let (mut lo, mut hi) = (*first, *first);
+    for p in points {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    let lo = lo.map(|c| c - pad);
+    let hi = hi.map(|c| c + pad);
+    list(f, [&lo, &hi], point)
+}
+
+impl Prim {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        const I: &str = "        ";
+        let pad = match &self.kind {
+            PrimKind::Mesh { triangles } => {
+                writeln!(f, "    def Mesh \"{}\"", self.name)?;
+                writeln!(f, "    {{")?;
+                writeln!(f, "{I}uniform bool doubleSided = 1")?;
+                write!(f, "{I}int[] faceVertexCounts = ")?;
+                list(f, triangles, |f, _| f.write_str("3"))?;
+                write!(f, "\n{I}int[] faceVertexIndices = ")?;
+                list(f, triangles.iter().flatten(), |f, i| write!(f, "{i}"))?;
+                writeln!(f)?;
+                writeln!(f, "{I}uniform token subdivisionScheme = \"none\"")?;
+                0.0
+            }
+            PrimKind::Curves { counts, widths } => {
+                writeln!(f, "    def BasisCurves \"{}\"", self.name)?;
+                writeln!(f, "    {{")?;
+                writeln!(f, "{I}uniform token type = \"linear\"")?;
+                write!(f, "{I}int[] curveVertexCounts = ")?;
+                list(f, counts, |f, c| write!(f, "{c}"))?;
+                writeln!(f)?;
+                if let Some(w) = widths {
+                    write!(f, "{I}float[] widths = ")?;
+                    list(f, w, |f, x| write!(f, "{x}"))?;
+                    let interpolation = if w.len() == 1 { "constant" } else { "vertex" };
+                    writeln!(f, " (\n{I}    interpolation = \"{interpolation}\"\n{I})")?;
+                }
+                widths
+                    .as_ref()
+                    .and_then(|w| w.iter().copied().reduce(f32::max))
+                    .unwrap_or(0.0)
+                    * 0.5
+            }
+        };
+        if self.samples.is_empty() {
+            write!(f, "{I}float3[] extent = ")?;
+            extent_list(f, &self.rest, pad)?;
+            write!(f, "\n{I}point3f[] points = ")?;
+            points_list(f, &self.rest)?;
+            writeln!(f)?;
+        } else {
+            writeln!(f, "{I}float3[] extent.timeSamples = {{")?;
+            for (frame, points) in &self.samples {
+                write!(f, "{I}    {frame}: ")?;
+                extent_list(f, points, pad)?;
+                writeln!(f, ",")?;
+            }
+            writeln!(f, "{I}}}")?;
+            writeln!(f, "{I}point3f[] points.timeSamples = {{")?;
+            for (frame, points) in &self.samples {
+                write!(f, "{I}    {frame}: ")?;
+                points_list(f, points)?;
+                writeln!(f, ",")?;
+            }
+            writeln!(f, "{I}}}")?;
+        }
+        writeln!(f, "    }}")
+    }
+}
+
+impl fmt::Display for UsdaScene {
+    /// The scene as `.usda` text.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(f, "#usda 1.0")?;
+        writeln!(f, "(")?;
+        writeln!(f, "    defaultPrim = \"World\"")?;
+        writeln!(f, "    doc = \"Written by Weft\"")?;
+        if let Some((first, last)) = self.frame_range() {
+            writeln!(f, "    endTimeCode = {last}")?;
+            writeln!(f, "    framesPerSecond = {}", self.fps)?;
+            writeln!(f, "    metersPerUnit = 1")?;
+            writeln!(f, "    startTimeCode = {first}")?;
+        } else {
+            writeln!(f, "    framesPerSecond = {}", self.fps)?;
+            writeln!(f, "    metersPerUnit = 1")?;
+        }
+        writeln!(f, "    timeCodesPerSecond = {}", self.fps)?;
+        writeln!(f, "    upAxis = \"Y\"")?;
+        writeln!(f, ")")?;
+        writeln!(f)?;
+        writeln!(f, "def Xform \"World\"")?;
+        writeln!(f, "{{")?;
+        for (k, prim) in self.prims.iter().enumerate() {
+            if k > 0 {
+                writeln!(f)?;
+            }
+            prim.fmt(f)?;
+        }
+        writeln!(f, "}}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn quad(z: f64) -> Mesh {
+        Mesh {
+            positions: vec![[0.0, 0.0, z], [1.0, 0.0, z], [1.0, 1.0, z], [0.0, 1.0, z]],
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+        }
+    }
+
+    fn strands() -> Curves {
+        Curves {
+            positions: vec![
+                [0.0, 0.0, 0.0],
+                [0.0, 0.5, 0.0],
+                [0.0, 1.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [1.0, 1.0, 0.0],
+            ],
+            offsets: vec![0, 3, 5],
+        }
+    }
+
+    fn balanced(text: &str, open: char, close: char) -> bool {
+        let mut depth = 0_i64;
+        for c in text.chars() {
+            if c == open {
+                depth += 1;
+            } else if c == close {
+                depth -= 1;
+                if depth < 0 {
+                    return false;
+                }
+            }
+        }
+        depth == 0
+    }
+
+    #[test]
+    fn two_frame_scene() {
+        let mut scene = UsdaScene::new(30.0).expect("fps");
+        let cloth = quad(0.0);
+        let hair = strands();
+        let c = scene.add_mesh("my cloth-1", &cloth).expect("mesh");
+        let h = scene
+            .add_curves("hair", &hair, Some(&[0.002]))
+            .expect("curves");
+        assert_eq!(scene.prim_name(c), Some("my_cloth_1"));
+        assert_eq!(scene.prim_name(h), Some("hair"));
+
+        let moved_cloth = quad(-0.1);
+        let moved_hair: Vec<[f64; 3]> = hair
+            .positions
+            .iter()
+            .map(|p| [p[0] + 0.1, p[1], p[2]])
+            .collect();
+        scene
+            .add_frame(0, &[&cloth.positions, &hair.positions])
+            .expect("frame 0");
+        scene
+            .add_frame(1, &[&moved_cloth.positions, &moved_hair])
+            .expect("frame 1");
+        assert_eq!(scene.frame_range(), Some((0, 1)));
+
+        let text = scene.to_string();
+        assert!(text.starts_with("#usda 1.0\n(\n"), "{text}");
+        for needle in [
+            "defaultPrim = \"World\"",
+            "startTimeCode = 0",
+            "endTimeCode = 1",
+            "timeCodesPerSecond = 30",
+            "upAxis = \"Y\"",
+            "metersPerUnit = 1",
+            "def Xform \"World\"",
+            "def Mesh \"my_cloth_1\"",
+            "int[] faceVertexCounts = [3, 3]\n",
+            "int[] faceVertexIndices = [0, 1, 2, 0, 2, 3]\n",
+            "uniform token subdivisionScheme = \"none\"",
+            "point3f[] points.timeSamples = {",
+            "0: [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)],",
+            "1: [(0, 0, -0.1), (1, 0, -0.1), (1, 1, -0.1), (0, 1, -0.1)],",
+            "def BasisCurves \"hair\"",
+            "uniform token type = \"linear\"",
+            "int[] curveVertexCounts = [3, 2]\n",
+            "float[] widths = [0.002]",
+            "interpolation = \"constant\"",
+            "0: [(0, 0, 0), (0, 0.5, 0), (0, 1, 0), (1, 0, 0), (1, 1, 0)],",
+            "1: [(0.1, 0, 0), (0.1, 0.5, 0), (0.1, 1, 0), (1.1, 0, 0), (1.1, 1, 0)],",
+            // Extent of the hair at frame 0, padded by half the width.
+            "0: [(-0.001, -0.001, -0.001), (1.001, 1.001, 0.001)],",
+        ] {
+            assert!(text.contains(needle), "missing {needle:?} in\n{text}");
+        }
+        assert_eq!(text.matches("points.timeSamples").count(), 2);
+        assert_eq!(text.matches("def ").count(), 3);
+        for (open, close) in [('{', '}'), ('(', ')'), ('[', ']')] {
+            assert!(balanced(&text, open, close), "{open}{close} unbalanced");
+        }
+
+        let mut bytes = Vec::new();
+        scene.write(&mut bytes).expect("write");
+        assert_eq!(bytes, text.as_bytes());
+    }
+
+    #[test]
+    fn points_use_full_single_precision() {
+        let mut scene = UsdaScene::new(24.0).expect("fps");
+        let mut m = quad(0.0);
+        m.positions[1] = [0.1, 1.0 / 3.0, 16_777_217.0];
+        scene.add_mesh("m", &m).expect("mesh");
+        let text = scene.to_string();
+        // No time samples: the rest positions are the default value, with no time range.
+        assert!(text.contains("(0.1, 0.33333334, 16777216)"), "{text}");
+        assert!(!text.contains("startTimeCode"));
+        assert!(text.contains("float3[] extent = [(0, 0, 0), (1, 1, 16777216)]"));
+        let parsed: f32 = "0.33333334".parse().expect("f32");
+        assert_eq!(parsed, (1.0_f64 / 3.0) as f32);
+    }
+
+    #[test]
+    fn names_are_sanitized_and_unique() {
+        assert_eq!(sanitize_identifier("my cloth-1"), "my_cloth_1");
+        assert_eq!(sanitize_identifier("1abc"), "_1abc");
+        assert_eq!(sanitize_identifier(""), "_");
+        assert_eq!(sanitize_identifier("héllo.obj"), "h_llo_obj");
+        assert_eq!(sanitize_identifier("_ok_9"), "_ok_9");
+        let mut scene = UsdaScene::new(24.0).expect("fps");
+        let m = quad(0.0);
+        let names: Vec<String> = ["cloth", "cloth", "cloth!", "cloth", "cloth_2"]
+            .iter()
+            .map(|n| {
+                let id = scene.add_mesh(n, &m).expect("mesh");
+                scene.prim_name(id).expect("name").to_owned()
+            })
+            .collect();
+        assert_eq!(
+            names,
+            ["cloth", "cloth_2", "cloth_", "cloth_3", "cloth_2_2"]
+        );
+    }
+
+    #[test]
+    fn bad_input_is_an_error() {
+        assert_eq!(UsdaScene::new(0.0).err(), Some(UsdError::InvalidFps(0.0)));
+        assert!(UsdaScene::new(f64::NAN).is_err());
+        let mut scene = UsdaScene::new(24.0).expect("fps");
+        let mut m = quad(0.0);
+        m.triangles.push([0, 1, 4]);
+        assert!(matches!(
+            scene.add_mesh("m", &m),
+            Err(UsdError::BadTopology { .. })
+        ));
+        let mut m = quad(0.0);
+        m.positions[2][1] = f64::NAN;
+        assert!(matches!(
+            scene.add_mesh("m", &m),
+            Err(UsdError::NonFinite {
+                vertex: 2,
+                frame: None,
+                ..
+            })
+        ));
+        let mut c = strands();
+        c.offsets = vec![0, 4, 5];
+        assert!(matches!(
+            scene.add_curves("h", &c, None),
+            Err(UsdError::BadTopology { .. })
+        ));
+        c.offsets = vec![0, 3, 6];
+        assert!(scene.add_curves("h", &c, None).is_err());
+        assert!(matches!(
+            scene.add_curves("h", &strands(), Some(&[0.1, 0.2])),
+            Err(UsdError::BadWidths { .. })
+        ));
+        assert!(scene.add_curves("h", &strands(), Some(&[-1.0])).is_err());
+        assert_eq!(scene.prim_count(), 0);
+
+        let id = scene.add_mesh("m", &quad(0.0)).expect("mesh");
+        let h = scene
+            .add_curves("h", &strands(), Some(&[0.1; 5]))
+            .expect("curves");
+        let q = quad(0.0);
+        let s = strands();
+        assert!(matches!(
+            scene.add_frame(0, &[&q.positions]),
+            Err(UsdError::PrimCount {
+                expected: 2,
+                found: 1,
+                ..
+            })
+        ));
+        assert!(matches!(
+            scene.add_frame(3, &[&q.positions, &q.positions]),
+            Err(UsdError::PointCount {
+                frame: 3,
+                expected: 5,
+                found: 4,
+                ..
+            })
+        ));
+        let mut far = s.positions.clone();
+        far[4][0] = 1e39; // finite in f64, not in f32
+        let err = scene
+            .add_frame(2, &[&q.positions, &far])
+            .expect_err("too large");
+        assert_eq!(
+            err.to_string(),
+            "prim `h`, frame 2: vertex 4 has a coordinate that is not finite in single precision"
+        );
+        // Nothing was added by the failed frames.
+        assert_eq!(scene.frame_range(), None);
+        assert!(scene.set_points(PrimId(7), 0, &q.positions).is_err());
+        scene.set_points(id, 5, &q.positions).expect("one prim");
+        assert_eq!(scene.frame_range(), Some((5, 5)));
+        let text = scene.to_string();
+        // Per-vertex widths; the curves prim without samples keeps its rest points.
+        assert!(text.contains("interpolation = \"vertex\""), "{text}");
+        assert_eq!(text.matches("points.timeSamples").count(), 1);
+        assert_eq!(text.matches("point3f[] points = ").count(), 1);
+        let _ = h;
+    }
+}
