@@ -325,11 +325,20 @@ fn stats_text(g: &Graph, seconds: f64) -> String {
                 its.iter().max().unwrap_or(&0),
             );
         }
-        if let Some(frames) = r.details.as_ref().and_then(|d| d.get("solid_frames")).and_then(|f| f.as_array())
+        if let Some(frames) = r
+            .details
+            .as_ref()
+            .and_then(|d| d.get("solid_frames"))
+            .and_then(|f| f.as_array())
             && !frames.is_empty()
         {
             let sum = |k: &str| frames.iter().filter_map(|f| f[k].as_f64()).sum::<f64>();
-            let max = |k: &str| frames.iter().filter_map(|f| f[k].as_f64()).fold(0.0f64, f64::max);
+            let max = |k: &str| {
+                frames
+                    .iter()
+                    .filter_map(|f| f[k].as_f64())
+                    .fold(0.0f64, f64::max)
+            };
             let n = frames.len() as f64;
             s += &format!(
                 "  └ {} frames: {:.1} steps/frame, {:.1} Newton iterations/frame (max {} in a step), {} retries, largest residual {:.2e} m/s; assembly {:.0} ms, factorization {:.0} ms, solves {:.0} ms\n",

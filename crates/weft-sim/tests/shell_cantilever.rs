@@ -16,11 +16,31 @@ fn tip_deflection(nx: usize, ny: usize) -> (f64, f64) {
     let dx = len / (nx - 1) as f64;
     // The grid spans x ∈ [−dx, L]: its first column sits behind the clamp line x = 0.
     let total = len + dx;
-    let mesh = grid([total, width], [nx + 1, ny], Plane::Xz, [0.5 * total - dx, 0.0, 0.0]);
+    let mesh = grid(
+        [total, width],
+        [nx + 1, ny],
+        Plane::Xz,
+        [0.5 * total - dx, 0.0, 0.0],
+    );
     let mut el = SceneElement::new("strip", ElementKind::Cloth, Geometry::Mesh(mesh));
-    el.secs.insert(DiscreteShell { youngs_modulus: e, poisson_ratio: 0.0, thickness: t, ..Default::default() });
-    el.secs.insert(Density { area_density: rho_a, ..Default::default() });
-    let tree = BehaviorTree { behaviors: vec![Arc::new(DiscreteShellMaterial), Arc::new(Gravity { acceleration: [0.0, -9.81, 0.0] })] };
+    el.secs.insert(DiscreteShell {
+        youngs_modulus: e,
+        poisson_ratio: 0.0,
+        thickness: t,
+        ..Default::default()
+    });
+    el.secs.insert(Density {
+        area_density: rho_a,
+        ..Default::default()
+    });
+    let tree = BehaviorTree {
+        behaviors: vec![
+            Arc::new(DiscreteShellMaterial),
+            Arc::new(Gravity {
+                acceleration: [0.0, -9.81, 0.0],
+            }),
+        ],
+    };
     let c = compile(&[el], &tree).unwrap();
     let mut sys = c.system.clone();
     let cols = nx + 1;
@@ -30,8 +50,21 @@ fn tip_deflection(nx: usize, ny: usize) -> (f64, f64) {
     }
     let mut state = c.state.clone();
     let mut integ = Integrator::new(&sys).unwrap();
-    integ.solve_static(&sys, &mut state, &Settings { method: Method::Newton, tolerance: 1e-12, max_iterations: 200 }).unwrap();
-    let tip: f64 = (0..ny).map(|j| -state.x[j * cols + cols - 1].y).sum::<f64>() / ny as f64;
+    integ
+        .solve_static(
+            &sys,
+            &mut state,
+            &Settings {
+                method: Method::Newton,
+                tolerance: 1e-12,
+                max_iterations: 200,
+            },
+        )
+        .unwrap();
+    let tip: f64 = (0..ny)
+        .map(|j| -state.x[j * cols + cols - 1].y)
+        .sum::<f64>()
+        / ny as f64;
     let ei = e * width * t.powi(3) / 12.0;
     let q = rho_a * 9.81 * width;
     // Clamp half a column behind the second pinned column: beam length L + dx/2.
@@ -57,5 +90,8 @@ fn shell_strip_cantilever_converges_with_the_measured_calibration_factor() {
     // Converging: the last refinement changes the ratio by under 2 %.
     assert!((rel[2] - rel[1]).abs() / rel[2] < 0.02, "{rel:?}");
     // The converged ratio (0.591): within 3 % of the pinned value.
-    assert!((rel[2] - 0.591).abs() < 0.03 * 0.591, "calibration changed: {rel:?}");
+    assert!(
+        (rel[2] - 0.591).abs() < 0.03 * 0.591,
+        "calibration changed: {rel:?}"
+    );
 }
