@@ -29,10 +29,33 @@ fn finite(points: &[[f64; 3]], port: &str) -> Result<(), NodeError> {
     }
 }
 
-fn with_rest(mut e: SceneElement) -> SceneElement {
-    let rest = e.geometry.positions().to_vec();
+/// Sets the `rest` channel: the optional `rest` input's positions (same vertex count
+/// required), else the element's own positions.
+fn with_rest(cx: &mut EvalCx<'_>, mut e: SceneElement) -> Result<SceneElement, NodeError> {
+    let rest = match cx.input_opt("rest")? {
+        Some(v) => {
+            let r: Vec<[f64; 3]> = v
+                .get::<Mesh>()
+                .map(|m| m.positions.clone())
+                .or_else(|| v.get::<Curves>().map(|c| c.positions.clone()))
+                .unwrap_or_default();
+            if r.len() != e.vertex_count() {
+                return Err(NodeError::Input {
+                    port: "rest".into(),
+                    message: format!(
+                        "has {} vertices but the element has {}",
+                        r.len(),
+                        e.vertex_count()
+                    ),
+                });
+            }
+            finite(&r, "rest")?;
+            r
+        }
+        None => e.geometry.positions().to_vec(),
+    };
     e.set_channel("rest", Channel::Vec3(rest));
-    e
+    Ok(e)
 }
 
 /// Vertex indices from a list parameter of whole numbers.
@@ -53,9 +76,10 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
     r.register(
         NodeSpec::new(
             "convert.cloth",
-            "wraps a mesh into a cloth Scene Element (its positions become the rest shape)",
+            "wraps a mesh into a cloth Scene Element (its positions, or the rest input's, become the rest shape)",
         )
         .input("mesh", "mesh", "the cloth's mesh")
+        .input_default("rest", "mesh", json!(null), "rest shape with the same vertices (default: the mesh itself)")
         .output("element", "element", "the cloth element")
         .param(ParamSpec::string("name", "cloth").doc("element name, unique in the scene")),
         |p| {
@@ -69,11 +93,8 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                         message: "has no triangles".into(),
                     });
                 }
-                let e = with_rest(SceneElement::new(
-                    cx.params().str("name"),
-                    ElementKind::Cloth,
-                    Geometry::Mesh(m),
-                ));
+                let name = cx.params().str("name").to_string();
+                let e = with_rest(cx, SceneElement::new(&name, ElementKind::Cloth, Geometry::Mesh(m)))?;
                 cx.set("element", Value::new(e));
                 Ok(())
             }))
@@ -82,9 +103,10 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
     r.register(
         NodeSpec::new(
             "convert.hair",
-            "wraps curves into a hair Scene Element (its positions become the rest shape)",
+            "wraps curves into a hair Scene Element (its positions, or the rest input's, become the rest shape)",
         )
         .input("curves", "curves", "the strands")
+        .input_default("rest", "curves", json!(null), "rest shape with the same vertices (default: the curves themselves)")
         .output("element", "element", "the hair element")
         .param(ParamSpec::string("name", "hair").doc("element name, unique in the scene")),
         |p| {
@@ -98,11 +120,8 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                         message: "has no curves".into(),
                     });
                 }
-                let e = with_rest(SceneElement::new(
-                    cx.params().str("name"),
-                    ElementKind::Hair,
-                    Geometry::Curves(c),
-                ));
+                let name = cx.params().str("name").to_string();
+                let e = with_rest(cx, SceneElement::new(&name, ElementKind::Hair, Geometry::Curves(c)))?;
                 cx.set("element", Value::new(e));
                 Ok(())
             }))
