@@ -12,7 +12,7 @@ use weft_graph::{Context, Graph, Registry, load_str};
 /// Arguments of `weft bench`.
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {
-    /// Suite to run: `graph`.
+    /// Suite to run: `graph` (engine overhead) or `solid` (cloth and hair solver).
     suite: String,
     /// Fewer repetitions (for CI smoke runs).
     #[arg(long)]
@@ -83,12 +83,12 @@ fn dirty_pull_ms(g: &mut Graph, node: &str, reps: usize) -> f64 {
 
 /// One measured row.
 #[derive(serde::Serialize)]
-struct Row {
-    case: String,
-    nodes: usize,
-    value: f64,
-    unit: &'static str,
-    target: &'static str,
+pub(crate) struct Row {
+    pub case: String,
+    pub nodes: usize,
+    pub value: f64,
+    pub unit: &'static str,
+    pub target: &'static str,
 }
 
 fn graph_suite(reg: &Arc<Registry>, quick: bool) -> Vec<Row> {
@@ -173,12 +173,19 @@ fn graph_suite(reg: &Arc<Registry>, quick: bool) -> Vec<Row> {
 pub fn run(reg: &Arc<Registry>, a: BenchArgs) -> ExitCode {
     let rows = match a.suite.as_str() {
         "graph" => graph_suite(reg, a.quick),
+        "solid" => match crate::bench_solid::suite(a.quick) {
+            Ok(r) => r,
+            Err(e) => {
+                eprintln!("error: {e}");
+                return ExitCode::from(1);
+            }
+        },
         other => {
-            eprintln!("error: unknown bench suite '{other}' (suites: graph)");
+            eprintln!("error: unknown bench suite '{other}' (suites: graph, solid)");
             return ExitCode::from(2);
         }
     };
-    println!("| case | nodes | value | unit | target |\n|---|---:|---:|---|---|");
+    println!("| case | size | value | unit | target |\n|---|---:|---:|---|---|");
     for r in &rows {
         println!(
             "| {} | {} | {:.3} | {} | {} |",
