@@ -122,7 +122,9 @@ pub struct Rod {
     pub radius: f64,
     /// Multiplier on the axial stiffness E·πr² (default 1; lower it for stretchy strands).
     pub stretch_scale: f64,
-    /// Multiplier on the bending stiffness E·πr⁴/4 (default 1).
+    /// Bending stiffness EI [N·m²]; 0 (the default) derives it as E·πr⁴/4.
+    pub bend_stiffness: f64,
+    /// Multiplier on the bending stiffness (default 1).
     pub bend_scale: f64,
     /// Mass-proportional damping [1/s] (default 0).
     pub damping: f64,
@@ -136,6 +138,7 @@ impl Default for Rod {
             youngs_modulus: 3e9,
             radius: 5e-5,
             stretch_scale: 1.0,
+            bend_stiffness: 0.0,
             bend_scale: 1.0,
             damping: 0.0,
             rest_channel: "rest".into(),

@@ -274,8 +274,19 @@ impl Behavior for RodMaterial {
             let off = b.offset(ei).expect("hair elements have a vertex range");
             let area = std::f64::consts::PI * rod.radius * rod.radius;
             let ea = rod.stretch_scale * rod.youngs_modulus * area;
-            let ei_bend =
-                rod.bend_scale * rod.youngs_modulus * area * rod.radius * rod.radius / 4.0;
+            if !(rod.bend_stiffness >= 0.0 && rod.bend_stiffness.is_finite()) {
+                return Err(bad(
+                    name,
+                    "rod.bend_stiffness",
+                    format!("must be >= 0, got {}", rod.bend_stiffness),
+                ));
+            }
+            let ei = if rod.bend_stiffness > 0.0 {
+                rod.bend_stiffness
+            } else {
+                rod.youngs_modulus * area * rod.radius * rod.radius / 4.0
+            };
+            let ei_bend = rod.bend_scale * ei;
             for k in 0..curves.len() {
                 let r = curves.range(k);
                 let pts: Vec<Vector3<f64>> = rest[r.clone()].iter().map(|&p| v3(p)).collect();

@@ -257,3 +257,35 @@ fn a_step_that_cannot_converge_is_retried_then_reported_with_frame_and_substep()
         "{e}"
     );
 }
+
+#[test]
+fn a_rod_takes_young_s_modulus_or_an_explicit_bend_stiffness() {
+    let curves = strands_on_sphere([0.0; 3], 0.1, 2, 4, 0.1, 30.0);
+    let bends = |rod: Rod| {
+        let mut e = SceneElement::new("hair", ElementKind::Hair, Geometry::Curves(curves.clone()));
+        e.secs.insert(rod);
+        compile(&[e], &tree())
+            .unwrap()
+            .system
+            .elements
+            .bends
+            .iter()
+            .map(|b| b.k)
+            .collect::<Vec<_>>()
+    };
+    let derived = bends(Rod::default());
+    let r = Rod::default();
+    let ei = r.youngs_modulus * std::f64::consts::PI * r.radius.powi(4) / 4.0;
+    let explicit = bends(Rod {
+        bend_stiffness: ei,
+        ..Rod::default()
+    });
+    for (a, b) in derived.iter().zip(&explicit) {
+        assert!((a - b).abs() <= 1e-12 * a, "{a} vs {b}");
+    }
+    let doubled = bends(Rod {
+        bend_stiffness: 2.0 * ei,
+        ..Rod::default()
+    });
+    assert!((doubled[0] / derived[0] - 2.0).abs() < 1e-12);
+}

@@ -100,9 +100,13 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             ParamSpec::float("stretch_scale", d.stretch_scale)
                 .gt(0.0)
                 .doc("multiplier on the axial stiffness E·πr²"),
+            ParamSpec::float("bend_stiffness", d.bend_stiffness)
+                .ge(0.0)
+                .unit("N·m²")
+                .doc("bending stiffness EI; 0 derives it as E·πr⁴/4"),
             ParamSpec::float("bend_scale", d.bend_scale)
                 .ge(0.0)
-                .doc("multiplier on the bending stiffness E·πr⁴/4; 0 disables bending"),
+                .doc("multiplier on the bending stiffness; 0 disables bending"),
             ParamSpec::float("damping", d.damping)
                 .ge(0.0)
                 .unit("1/s")
@@ -114,6 +118,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             youngs_modulus: p.f64("youngs_modulus"),
             radius: p.f64("radius"),
             stretch_scale: p.f64("stretch_scale"),
+            bend_stiffness: p.f64("bend_stiffness"),
             bend_scale: p.f64("bend_scale"),
             damping: p.f64("damping"),
             rest_channel: p.str("rest_channel").to_string(),
