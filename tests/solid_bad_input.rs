@@ -135,3 +135,69 @@ fn an_sec_no_behavior_reads_is_a_warning() {
         "{w:?}"
     );
 }
+
+#[test]
+fn a_duplicated_face_is_refused_by_name() {
+    // Double-sided exports list a face twice; it would double mass and stiffness.
+    let (_dir, node) = obj_mesh("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\nf 3 2 1\n");
+    let mut g = graph(&cloth_graph(&node, "", "0", ""));
+    let e = run_error(&mut g, 0);
+    assert_eq!(
+        e,
+        "node 'solve' at frame 0: element 'cloth': triangles 0 and 2 use the same vertices [0, 1, 2] (a duplicated face, e.g. from a double-sided export)"
+    );
+}
+
+#[test]
+fn a_vertex_in_no_triangle_is_named_as_such() {
+    let (_dir, node) = obj_mesh("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 5 5 5\nf 1 2 3\n");
+    let mut g = graph(&cloth_graph(&node, "", "0", ""));
+    let e = run_error(&mut g, 0);
+    assert_eq!(
+        e,
+        "node 'solve' at frame 0: element 'cloth': vertex 3 is in no triangle, so it has no mass (unused vertices cannot be simulated: remove or pin it)"
+    );
+}
+
+#[test]
+fn element_names_cannot_leave_the_output_directory() {
+    let text = cloth_graph(GRID, "", "0", "").replace(
+        r#""inputs": {"mesh": "mesh.mesh"}}"#,
+        r#""inputs": {"mesh": "mesh.mesh"}, "params": {"name": "../escape"}}"#,
+    );
+    let e = load_error(&text);
+    assert!(e.contains("node 'cloth': params: param 'name': must be a non-empty printable name without '/', '\\' or '..', got \"../escape\""), "{e}");
+}
+
+#[test]
+fn a_usd_file_forgets_frames_from_before_an_upstream_change() {
+    let dir = tempfile::tempdir().unwrap();
+    let usd = dir.path().join("s.usda");
+    let text = cloth_graph(GRID, "", "0", "").replace(
+        r#""scene": "solve.scene""#,
+        r#""scene": "solve.scene", "usd": "usd.path""#,
+    );
+    let text = text.replace(
+        r#""solve":  {"type": "solver.solid""#,
+        &format!(r#""usd": {{"type": "output.usd", "inputs": {{"scene": "solve.scene"}}, "params": {{"path": {:?}}}}}, "solve":  {{"type": "solver.solid""#, usd.to_str().unwrap()),
+    );
+    let mut g = graph(&text);
+    for f in 0..=4 {
+        g.pull("usd", Context::new(f)).unwrap();
+    }
+    assert!(
+        std::fs::read_to_string(&usd)
+            .unwrap()
+            .contains("endTimeCode = 4")
+    );
+    g.set_param("grav", "acceleration", serde_json::json!([0.0, 0.0, 0.0]))
+        .unwrap();
+    for f in 0..=2 {
+        g.pull("usd", Context::new(f)).unwrap();
+    }
+    let t = std::fs::read_to_string(&usd).unwrap();
+    assert!(
+        t.contains("endTimeCode = 2"),
+        "stale frames 3 and 4 were kept"
+    );
+}

@@ -728,6 +728,18 @@ impl Graph {
         self.slots[target].hash.expect("computed")
     }
 
+    /// Hash of what is connected to input `port` of `n`, independent of the frame: equal
+    /// values mean the same upstream definition (for nodes that accumulate frames).
+    pub(crate) fn input_structure_hash(&mut self, n: usize, port: usize) -> u128 {
+        let conns = self.slots[n].inputs[port].clone();
+        let mut h = Xxh3::new();
+        for (src, p) in conns {
+            h.update(&self.structural_hash(src).to_le_bytes());
+            h.update(&(p as u64).to_le_bytes());
+        }
+        h.digest128()
+    }
+
     /// Cache key of what is connected to input `port` of `n` at `ctx`.
     pub(crate) fn input_hash(&mut self, n: usize, port: usize, ctx: Context) -> u128 {
         let conns = self.slots[n].inputs[port].clone();

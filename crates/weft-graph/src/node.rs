@@ -206,6 +206,13 @@ impl EvalCx<'_> {
         let i = self.port_index(port)?;
         Ok(self.graph.input_hash(self.node, i, self.ctx))
     }
+    /// A hash of what is connected to `port` that does not depend on the frame: it changes
+    /// only when something upstream is redefined (for nodes that accumulate frames, such as
+    /// file writers, to notice that earlier frames are stale).
+    pub fn input_structure_hash(&mut self, port: &str) -> Result<u128, NodeError> {
+        let i = self.port_index(port)?;
+        Ok(self.graph.input_structure_hash(self.node, i))
+    }
     /// Sets an output.
     pub fn set(&mut self, port: &str, v: impl Into<Value>) {
         match self.graph.slot_spec(self.node).output_index(port) {

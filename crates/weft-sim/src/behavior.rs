@@ -126,6 +126,21 @@ impl Behavior for DiscreteShellMaterial {
             }
             let rest = rest_positions(e, &shell.rest_channel)?;
             let off = b.offset(ei).expect("cloth elements have a vertex range");
+            // A face listed twice (double-sided exports) would double mass and stiffness and
+            // make hinges whose two wings are one vertex: refuse it by name.
+            let mut seen = std::collections::HashMap::new();
+            for (ti, t) in mesh.triangles.iter().enumerate() {
+                let mut key = *t;
+                key.sort_unstable();
+                if let Some(first) = seen.insert(key, ti) {
+                    return Err(SimError::BadGeometry {
+                        element: name.into(),
+                        message: format!(
+                            "triangles {first} and {ti} use the same vertices {key:?} (a duplicated face, e.g. from a double-sided export)"
+                        ),
+                    });
+                }
+            }
             let mat = MembraneMaterial::orthotropic(
                 shell.youngs_modulus,
                 shell.poisson_ratio,

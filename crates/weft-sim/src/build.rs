@@ -146,28 +146,41 @@ pub fn compile(scene: &[SceneElement], tree: &BehaviorTree) -> Result<Compiled, 
     for beh in &tree.behaviors {
         beh.apply(scene, &mut b)?;
     }
-    // Every simulated vertex needs mass (or to be pinned): otherwise no material Behavior
-    // covered it.
+    // Every simulated vertex needs mass (or to be pinned). If none of an element's vertices has
+    // any, no material Behavior covered it; if only some lack it, they are in no triangle or
+    // segment.
     for (e, r) in scene.iter().zip(&b.ranges) {
-        if let Some(r) = r
-            && let Some(i) = r
-                .clone()
-                .find(|&i| b.system.mass[i] <= 0.0 && !b.system.pinned[i])
-        {
-            return Err(SimError::BadGeometry {
-                element: e.name.clone(),
-                message: format!(
-                    "vertex {} has no mass: no material Behavior in the tree applies to this {} (add a {} material)",
-                    i - r.start,
-                    e.kind.name(),
-                    if e.kind == ElementKind::Cloth {
-                        "discrete shell"
-                    } else {
-                        "rod"
-                    }
-                ),
-            });
-        }
+        let Some(r) = r else { continue };
+        let massless = |i: usize| b.system.mass[i] <= 0.0 && !b.system.pinned[i];
+        let Some(i) = r.clone().find(|&i| massless(i)) else {
+            continue;
+        };
+        let message = if r.clone().all(|j| b.system.mass[j] <= 0.0) {
+            let material = if e.kind == ElementKind::Cloth {
+                "discrete shell"
+            } else {
+                "rod"
+            };
+            format!(
+                "vertex {} has no mass: no material Behavior in the tree applies to this {} (add a {material} material)",
+                i - r.start,
+                e.kind.name()
+            )
+        } else {
+            let what = if e.kind == ElementKind::Cloth {
+                "triangle"
+            } else {
+                "segment"
+            };
+            format!(
+                "vertex {} is in no {what}, so it has no mass (unused vertices cannot be simulated: remove or pin it)",
+                i - r.start
+            )
+        };
+        return Err(SimError::BadGeometry {
+            element: e.name.clone(),
+            message,
+        });
     }
     for (ei, e) in scene.iter().enumerate() {
         for t in e.secs.types() {

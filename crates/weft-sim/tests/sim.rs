@@ -145,12 +145,13 @@ fn unread_secs_missing_materials_and_bad_parameters_are_reported() {
 fn a_non_manifold_edge_gets_no_hinge_and_one_warning() {
     let mut e = cloth(3);
     if let Geometry::Mesh(m) = e.geometry_mut() {
+        // Two fins on the boundary edge (0, 1): three triangles share it.
         let extra = m.positions.len() as u32;
         m.positions.push([0.0, 0.0, 0.5]);
-        m.triangles.push([0, 1, extra]); // a third triangle on edge (0, 1)
-        m.triangles.push([1, 0, extra]);
+        m.positions.push([0.5, 0.0, -0.5]);
+        m.triangles.push([0, 1, extra]);
+        m.triangles.push([1, 0, extra + 1]);
     }
-    // Duplicate fin triangle makes edge (0,1) shared by three or more triangles.
     let c = compile(&[e], &tree()).unwrap();
     assert_eq!(c.warnings.len(), 1);
     assert!(

@@ -11,9 +11,13 @@ use weft_scene::{
 
 fn check_name(p: &Params) -> Result<(), String> {
     let n = p.str("name");
-    if n.is_empty() || n.chars().any(|c| c.is_control()) {
+    // Names become file names in outputs: no separators or parent references.
+    if n.is_empty()
+        || n.chars().any(|c| c.is_control() || c == '/' || c == '\\')
+        || n.contains("..")
+    {
         return Err(format!(
-            "param 'name': must be a non-empty printable name, got {n:?}"
+            "param 'name': must be a non-empty printable name without '/', '\\' or '..', got {n:?}"
         ));
     }
     Ok(())

@@ -48,6 +48,9 @@ fn obj(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
 /// Accumulates frames of one scene into a .usda file, rewritten after every frame.
 struct UsdOut {
     scene: Option<(UsdaScene, Vec<String>)>,
+    /// Identity of the upstream definition the samples came from: a change upstream makes
+    /// every earlier sample stale, so the file starts over.
+    upstream: u128,
 }
 
 impl weft_graph::Compute for UsdOut {
@@ -56,10 +59,13 @@ impl weft_graph::Compute for UsdOut {
         let path = PathBuf::from(cx.params().str("path"));
         let elements = selected(&scene, cx.params().str("elements"));
         let names: Vec<String> = elements.iter().map(|e| e.name.clone()).collect();
-        let fresh = self
-            .scene
-            .as_ref()
-            .is_none_or(|(s, n)| *n != names || s.fps() != cx.context().fps);
+        let upstream = cx.input_structure_hash("scene")?;
+        let fresh = upstream != self.upstream
+            || self
+                .scene
+                .as_ref()
+                .is_none_or(|(s, n)| *n != names || s.fps() != cx.context().fps);
+        self.upstream = upstream;
         if fresh {
             let mut u = UsdaScene::new(cx.context().fps).map_err(|e| fail(&path, e))?;
             for e in &elements {
@@ -169,7 +175,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             .output("path", "string", "the file written")
             .param(ParamSpec::string("path", "out/scene.usda").doc("output file (rewritten with all frames so far after each frame)"))
             .param(elements()),
-        |_| Ok(Kernel::Compute(Box::new(UsdOut { scene: None }))),
+        |_| Ok(Kernel::Compute(Box::new(UsdOut { scene: None, upstream: 0 }))),
     )?;
     r.register(
         NodeSpec::new("output.preview", "renders each frame to DIRECTORY/PREFIX.FRAME.png (software renderer, camera framing the rest shapes)")

@@ -84,8 +84,20 @@ pub fn dihedral_gradient<S: DualNum<Primitive = f64> + Copy>(x: &[S; 12]) -> [S;
 
 impl Hinge {
     fn value<S: DualNum<Primitive = f64> + Clone>(&self, x: &[S]) -> S {
-        let d = dihedral_angle(x) - self.rest;
+        let th = dihedral_angle(x);
+        let d = th.clone() - self.rest - wrap_offset(th.re() - self.rest);
         d.clone() * d * self.k
+    }
+}
+
+/// The multiple of 2π that brings θ − θ̄ into (−π, π]: θ jumps by 2π when a hinge folds past
+/// ±π, and the energy must not (subtracting a constant leaves every derivative unchanged).
+fn wrap_offset(d: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    if d > PI || d <= -PI {
+        TAU * ((d + PI) / TAU).floor()
+    } else {
+        0.0
     }
 }
 
@@ -100,7 +112,8 @@ impl Element for Hinge {
     fn eval(&self, x: &[Vector3<f64>], project: bool, out: &mut Local) {
         let s: SVector<f64, 12> = gather(x, &self.v);
         let xs: [f64; 12] = s.into();
-        let d = dihedral_angle(&xs) - self.rest;
+        let d0 = dihedral_angle(&xs) - self.rest;
+        let d = d0 - wrap_offset(d0);
         let gt = dihedral_gradient(&xs);
         // E = k d², ∇E = 2k d ∇θ, ∇²E = 2k ∇θ∇θᵀ + 2k d ∇²θ; ∇²θ column by column as the
         // derivative of ∇θ along each DOF.
@@ -158,6 +171,22 @@ mod tests {
                 "sign follows the fold"
             );
         }
+    }
+
+    #[test]
+    fn the_energy_is_continuous_when_the_fold_passes_pi() {
+        // Rest folded to 3.0 rad; folding on past π to −3.0 (same as 3.28) costs (0.28)².
+        let h = Hinge {
+            v: [0, 1, 2, 3],
+            k: 1.0,
+            rest: 3.0,
+        };
+        let e = h.energy(&wing(-3.0));
+        let want = (2.0 * std::f64::consts::PI - 6.0).powi(2);
+        assert!((e - want).abs() < 1e-12, "{e} vs {want}");
+        assert_eq!(wrap_offset(0.5), 0.0);
+        assert!((wrap_offset(4.0) - std::f64::consts::TAU).abs() < 1e-15);
+        assert!((wrap_offset(-4.0) + std::f64::consts::TAU).abs() < 1e-15);
     }
 
     #[test]
