@@ -434,7 +434,11 @@ impl Behavior for AttachmentBehavior {
             {
                 return Err(fail(format!("spring stiffness must be > 0, got {k}")));
             }
-            for &v in &att.vertices {
+            // A vertex listed twice is attached once (a second spring would double it).
+            let mut vertices = att.vertices.clone();
+            vertices.sort_unstable();
+            vertices.dedup();
+            for &v in &vertices {
                 if v as usize >= n {
                     return Err(fail(format!(
                         "vertex {v} is out of range (element '{}' has {n} vertices)",

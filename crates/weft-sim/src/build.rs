@@ -143,7 +143,14 @@ pub fn compile(scene: &[SceneElement], tree: &BehaviorTree) -> Result<Compiled, 
         warnings: Vec::new(),
         read: vec![BTreeSet::new(); scene.len()],
     };
-    for beh in &tree.behaviors {
+    for (k, beh) in tree.behaviors.iter().enumerate() {
+        if tree.behaviors[..k].iter().any(|o| o.name() == beh.name()) {
+            // Applying a Behavior twice doubles its terms (damping, stiffness, gravity).
+            b.warn(format!(
+                "the Behavior tree lists '{}' more than once: its terms are applied twice",
+                beh.name()
+            ));
+        }
         beh.apply(scene, &mut b)?;
     }
     // Every simulated vertex needs mass (or to be pinned). If none of an element's vertices has

@@ -290,3 +290,30 @@ fn a_rod_takes_young_s_modulus_or_an_explicit_bend_stiffness() {
     });
     assert!((doubled[0] / derived[0] - 2.0).abs() < 1e-12);
 }
+
+#[test]
+fn repeated_attachment_vertices_attach_once_and_repeated_behaviors_warn() {
+    let mut springs = pins("cloth", vec![0, 0, 2]);
+    springs.secs.insert(Attachment {
+        target: "cloth".into(),
+        vertices: vec![0, 0, 2],
+        mode: AttachmentMode::Spring(100.0),
+    });
+    let c = compile(&[cloth(3), springs], &tree()).unwrap();
+    assert_eq!(
+        c.terms["springs"], 2,
+        "vertex 0 listed twice gets one spring"
+    );
+    let mut t = tree();
+    t.behaviors.push(Arc::new(Gravity {
+        acceleration: [0.0, -9.81, 0.0],
+    }));
+    let c = compile(&[cloth(3)], &t).unwrap();
+    assert_eq!(
+        c.warnings,
+        vec![
+            "the Behavior tree lists 'gravity' more than once: its terms are applied twice"
+                .to_string()
+        ]
+    );
+}
