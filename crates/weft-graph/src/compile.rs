@@ -584,7 +584,7 @@ pub(crate) fn compile_body(
                 }
             }
         }
-        for (pi, ps) in spec.inputs.iter().enumerate() {
+        for ps in &spec.inputs {
             if ps.required && !decl.inputs.contains_key(&ps.name) {
                 d.push(
                     Diagnostic::error(
@@ -595,7 +595,6 @@ pub(crate) fn compile_body(
                     .field(format!("input '{}'", ps.name)),
                 );
             }
-            let _ = pi;
         }
     }
     let mut outs: Vec<(String, Src, &Ref)> = Vec::new();

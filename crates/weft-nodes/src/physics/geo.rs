@@ -178,7 +178,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                 meta.and_then(|m| m.modified().ok())
             );
             Ok(Kernel::Compute(Box::new(ObjFile {
-                hash: xxhash(stamp.as_bytes()),
+                hash: fnv1a_128(stamp.as_bytes()),
             })))
         },
     )
@@ -190,7 +190,7 @@ struct ObjFile {
     hash: u128,
 }
 
-fn xxhash(b: &[u8]) -> u128 {
+fn fnv1a_128(b: &[u8]) -> u128 {
     // FNV-1a, 128-bit: a stable hash with no extra dependency (this only needs to change when
     // the stamp changes).
     let mut h: u128 = 0x6c62272e07bb014262b821756295c58d;

@@ -4,7 +4,7 @@
 
 use super::types::Scene;
 use std::path::{Path, PathBuf};
-use weft_graph::{EvalCx, Kernel, NodeError, NodeSpec, ParamSpec, Registry, RegistryError, Value};
+use weft_graph::{EvalCx, Kernel, NodeError, NodeSpec, ParamSpec, Registry, RegistryError};
 use weft_scene::preview::{PreviewItem, auto_camera, render, write_png};
 use weft_scene::{
     ElementKind, Geometry, SceneElement, UsdaScene, bounds, write_obj_curves, write_obj_mesh,
@@ -189,6 +189,5 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             .param(elements()),
         |_| Ok(Kernel::from_fn(preview)),
     )?;
-    let _ = Value::from(0.0);
     Ok(())
 }
