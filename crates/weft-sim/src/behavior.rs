@@ -9,9 +9,7 @@ use std::sync::Arc;
 use weft_scene::{
     Attachment, AttachmentMode, Density, DiscreteShell, ElementKind, Geometry, Rod, SceneElement,
 };
-use weft_solid::energy::{
-    Hinge, Membrane, MembraneMaterial, RodBend, RodStretch, Spring, dihedral_angle,
-};
+use weft_solid::energy::{Membrane, MembraneMaterial, RodBend, RodStretch, Spring, shell_bending};
 
 /// Simulation logic for the elements a Behavior applies to.
 pub trait Behavior: Send + Sync + Debug {
@@ -69,10 +67,10 @@ fn rest_positions<'a>(e: &'a SceneElement, channel: &str) -> Result<&'a [[f64; 3
 }
 
 /// Discrete-shell cloth: StVK membrane (orthotropic by the SEC's warp/weft/shear scales) on every
-/// triangle and hinge bending on every interior edge, with lumped masses from the Density SEC.
-/// Bending stiffness per hinge: k = bend_scale · D · |ē|²/Ā, D = E t³/(12(1 − ν²)), Ā the two
-/// triangles' rest area, so that a uniform curvature κ costs ½Dκ² per area on an equilateral
-/// mesh (the sum over the three edge directions of 2√3·cos⁴ weights gives 3/2·k·κ²).
+/// triangle and mean-curvature bending at every vertex (`weft_solid::energy::ShellBend`:
+/// D/2 (2H − 2H̄)² per area, cotangent weights, so a bend costs the plate energy on any mesh
+/// and in any direction), with lumped masses from the Density SEC.
+/// D = bend_scale · E t³/(12(1 − ν²)).
 #[derive(Clone, Debug, Default)]
 pub struct DiscreteShellMaterial;
 
@@ -151,7 +149,6 @@ impl Behavior for DiscreteShellMaterial {
             );
             let warp = v3(shell.warp_direction);
             let n = rest.len() as u32;
-            let mut areas = Vec::with_capacity(mesh.triangles.len());
             for (ti, t) in mesh.triangles.iter().enumerate() {
                 if t.iter().any(|&v| v >= n) {
                     return Err(SimError::BadGeometry {
@@ -174,7 +171,6 @@ impl Behavior for DiscreteShellMaterial {
                 for &v in &gv {
                     b.add_mass(v as usize, m.area * density.area_density / 3.0);
                 }
-                areas.push(m.area);
                 b.system.elements.membranes.push(m);
             }
             for v in 0..n {
@@ -183,62 +179,27 @@ impl Behavior for DiscreteShellMaterial {
             if shell.bend_scale > 0.0 {
                 let d = shell.bend_scale * shell.youngs_modulus * shell.thickness.powi(3)
                     / (12.0 * (1.0 - shell.poisson_ratio.powi(2)));
-                self.hinges(e, mesh, rest, &areas, off, d, b)?;
-            }
-        }
-        Ok(())
-    }
-}
-
-impl DiscreteShellMaterial {
-    #[allow(clippy::too_many_arguments)]
-    fn hinges(
-        &self,
-        e: &SceneElement,
-        mesh: &weft_scene::Mesh,
-        rest: &[[f64; 3]],
-        areas: &[f64],
-        off: u32,
-        d: f64,
-        b: &mut SystemBuilder,
-    ) -> Result<(), SimError> {
-        // Edge → the triangles using it (with the vertex opposite the edge).
-        let mut edges: std::collections::BTreeMap<(u32, u32), Vec<(usize, u32)>> =
-            Default::default();
-        for (ti, t) in mesh.triangles.iter().enumerate() {
-            for k in 0..3 {
-                let (a, c, o) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
-                edges.entry((a.min(c), a.max(c))).or_default().push((ti, o));
-            }
-        }
-        let mut non_manifold = 0usize;
-        for tris in edges.values() {
-            match tris.as_slice() {
-                [(t1, o1), (t2, o2)] => {
-                    // Cyclic order of triangle 1 is (p, q, o₁): then n₁ is its normal, and n₂ is
-                    // triangle 2's when the mesh is consistently oriented (flat ⇒ θ = 0).
-                    let t = mesh.triangles[*t1];
-                    let ko = (0..3)
-                        .find(|&k| t[k] == *o1)
-                        .expect("opposite vertex is in its triangle");
-                    let (p, q) = (t[(ko + 1) % 3], t[(ko + 2) % 3]);
-                    let verts = [p, q, *o1, *o2];
-                    let x: Vec<f64> = verts.iter().flat_map(|&v| rest[v as usize]).collect();
-                    let rest_angle = dihedral_angle(&x);
-                    let len2 = (v3(rest[q as usize]) - v3(rest[p as usize])).norm_squared();
-                    let abar = areas[*t1] + areas[*t2];
-                    b.system.elements.hinges.push(Hinge {
-                        v: verts.map(|v| v + off),
-                        k: d * len2 / abar,
-                        rest: rest_angle,
-                    });
+                let rest: Vec<Vector3<f64>> = rest.iter().map(|&p| v3(p)).collect();
+                let bending = shell_bending(&rest, &mesh.triangles, d, shell.poisson_ratio)
+                    .map_err(|err| SimError::BadGeometry {
+                        element: name.into(),
+                        message: err.to_string(),
+                    })?;
+                if bending.non_manifold_edges > 0 {
+                    b.warn(format!(
+                        "element '{name}': {} non-manifold edge(s) (shared by more than two triangles); their vertices get no bending",
+                        bending.non_manifold_edges
+                    ));
                 }
-                [_] => {}
-                _ => non_manifold += 1,
+                for mut el in bending.vertices {
+                    el.offset_vertices(off);
+                    b.system.elements.shells.push(el);
+                }
+                for mut el in bending.triangles {
+                    el.offset_vertices(off);
+                    b.system.elements.midedges.push(el);
+                }
             }
-        }
-        if non_manifold > 0 {
-            b.warn(format!("element '{}': {non_manifold} non-manifold edge(s) (shared by more than two triangles) get no bending hinge", e.name));
         }
         Ok(())
     }

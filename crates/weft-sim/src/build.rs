@@ -203,7 +203,8 @@ pub fn compile(scene: &[SceneElement], tree: &BehaviorTree) -> Result<Compiled, 
     let el = &b.system.elements;
     let terms = BTreeMap::from([
         ("membranes", el.membranes.len()),
-        ("hinges", el.hinges.len()),
+        ("shell_bends", el.shells.len()),
+        ("shell_midedges", el.midedges.len()),
         ("rod_stretches", el.stretches.len()),
         ("rod_bends", el.bends.len()),
         ("springs", el.springs.len()),

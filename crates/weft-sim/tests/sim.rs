@@ -47,11 +47,9 @@ fn a_cloth_compiles_to_exactly_its_terms_with_documented_defaults() {
         pins("cloth", vec![(n * n - n) as u32, (n * n - 1) as u32]),
     ];
     let c = compile(&scene, &tree()).unwrap();
-    // 4×4 cells → 32 triangles; interior edges: 3·16 + 2·4 − 4·4... counted directly:
-    let edges = 4 * 5 * 2 + 16; // horizontal + vertical + one diagonal per cell
-    let boundary = 16;
+    // 4×4 cells → 32 triangles; one bending element per vertex.
     assert_eq!(c.terms["membranes"], 32);
-    assert_eq!(c.terms["hinges"], edges - boundary);
+    assert_eq!(c.terms["shell_bends"], n * n);
     assert_eq!(c.terms["rod_stretches"], 0, "no rods without hair");
     assert_eq!(c.terms["pinned"], 2);
     // Default density 0.2 kg/m² over 1 m².
@@ -142,7 +140,7 @@ fn unread_secs_missing_materials_and_bad_parameters_are_reported() {
 }
 
 #[test]
-fn a_non_manifold_edge_gets_no_hinge_and_one_warning() {
+fn a_non_manifold_edge_gets_no_bending_and_one_warning() {
     let mut e = cloth(3);
     if let Geometry::Mesh(m) = e.geometry_mut() {
         // Two fins on the boundary edge (0, 1): three triangles share it.
@@ -155,10 +153,14 @@ fn a_non_manifold_edge_gets_no_hinge_and_one_warning() {
     let c = compile(&[e], &tree()).unwrap();
     assert_eq!(c.warnings.len(), 1);
     assert!(
-        c.warnings[0].contains("non-manifold edge"),
+        c.warnings[0].contains("1 non-manifold edge(s)"),
         "{:?}",
         c.warnings
     );
+    // The edge's two vertices get no (trace) bending: 9 + 2 vertices, 2 without; every
+    // triangle keeps its deviatoric term, with the non-manifold edge free.
+    assert_eq!(c.terms["shell_bends"], 9 + 2 - 2);
+    assert_eq!(c.terms["shell_midedges"], 8 + 2);
 }
 
 #[test]

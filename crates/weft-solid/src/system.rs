@@ -1,6 +1,8 @@
 //! The mechanical system: lumped masses, pinned vertices, energy elements, and its state.
 
-use crate::energy::{Element, Hinge, Membrane, RodBend, RodStretch, Spring};
+use crate::energy::{
+    Element, Hinge, Membrane, MidedgeBend, RodBend, RodStretch, ShellBend, Spring,
+};
 use nalgebra::Vector3;
 
 /// Every energy element of a system, grouped by type (no dynamic dispatch in storage).
@@ -8,8 +10,12 @@ use nalgebra::Vector3;
 pub struct Elements {
     /// Cloth membrane triangles.
     pub membranes: Vec<Membrane>,
-    /// Cloth bending hinges.
+    /// Cloth bending hinges (the classic discrete-shell energy).
     pub hinges: Vec<Hinge>,
+    /// Cloth bending, trace part (per vertex).
+    pub shells: Vec<ShellBend>,
+    /// Cloth bending, deviatoric part (per triangle).
+    pub midedges: Vec<MidedgeBend>,
     /// Rod segments.
     pub stretches: Vec<RodStretch>,
     /// Rod bending at interior vertices.
@@ -19,11 +25,13 @@ pub struct Elements {
 }
 
 impl Elements {
-    /// Calls `f` on every element in a fixed order (membranes, hinges, stretches, bends,
-    /// springs): assembly order is part of determinism.
+    /// Calls `f` on every element in a fixed order (membranes, hinges, shells,
+    /// midedges, stretches, bends, springs): assembly order is part of determinism.
     pub fn for_each(&self, mut f: impl FnMut(&dyn Element)) {
         self.membranes.iter().for_each(|e| f(e));
         self.hinges.iter().for_each(|e| f(e));
+        self.shells.iter().for_each(|e| f(e));
+        self.midedges.iter().for_each(|e| f(e));
         self.stretches.iter().for_each(|e| f(e));
         self.bends.iter().for_each(|e| f(e));
         self.springs.iter().for_each(|e| f(e));
@@ -32,6 +40,8 @@ impl Elements {
     pub fn len(&self) -> usize {
         self.membranes.len()
             + self.hinges.len()
+            + self.shells.len()
+            + self.midedges.len()
             + self.stretches.len()
             + self.bends.len()
             + self.springs.len()

@@ -29,7 +29,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
     plain(
         r,
         "behavior.discrete_shell",
-        "cloth material: membrane and hinge bending on every cloth element, from its Discrete Shell and Density SECs or their defaults",
+        "cloth material: membrane and shell bending (mean curvature at vertices, midedge deviator per triangle) on every cloth element, from its Discrete Shell and Density SECs or their defaults",
         || Arc::new(DiscreteShellMaterial),
     )?;
     plain(

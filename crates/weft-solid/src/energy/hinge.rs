@@ -92,7 +92,7 @@ impl Hinge {
 
 /// The multiple of 2π that brings θ − θ̄ into (−π, π]: θ jumps by 2π when a hinge folds past
 /// ±π, and the energy must not (subtracting a constant leaves every derivative unchanged).
-fn wrap_offset(d: f64) -> f64 {
+pub(crate) fn wrap_offset(d: f64) -> f64 {
     use std::f64::consts::{PI, TAU};
     if d > PI || d <= -PI {
         TAU * ((d + PI) / TAU).floor()

@@ -1,21 +1,25 @@
-//! Energy terms. Each acts on a fixed stencil of at most four vertices and gives its energy,
+//! Energy terms. Each acts on a fixed stencil of at most 32 vertices and gives its energy,
 //! gradient and Hessian (optionally projected to PSD) into a [`Local`] buffer, so assembly
 //! never allocates.
 
 mod hinge;
 mod membrane;
+mod midedge;
 mod rod;
+mod shell;
 mod spring;
 
 pub use hinge::{Hinge, dihedral_angle, dihedral_gradient};
 pub use membrane::{Membrane, MembraneMaterial};
+pub use midedge::MidedgeBend;
 pub use rod::{RodBend, RodStretch};
+pub use shell::{MAX_STENCIL, ShellBend, ShellBending, ShellError, shell_bending};
 pub use spring::Spring;
 
 use nalgebra::{SMatrix, SVector, Vector3};
 
-/// Largest stencil: a hinge's four vertices.
-pub const MAX_DOFS: usize = 12;
+/// Largest stencil: a shell-bending vertex and up to 31 ring neighbours.
+pub const MAX_DOFS: usize = 96;
 
 /// One element's energy, gradient and Hessian over its own DOFs (3 per stencil vertex).
 #[derive(Clone, Debug)]

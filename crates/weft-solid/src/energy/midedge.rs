@@ -1,0 +1,313 @@
+//! The deviatoric half of shell bending: a per-triangle shape operator (the "midedge" operator
+//! of Grinspun, Gingold, Reisman & Zorin 2006, as in Chen, Weischedel & Vouga's libshell).
+//! See [`super::shell`] for why bending is split into a trace part (vertices) and this part.
+//!
+//! On triangle T the normal at the midpoint of edge k is the average of the two face normals,
+//! tilted by θₖ/2 towards the edge's in-plane normal tₖ; the nonconforming linear interpolation
+//! of the three midedge normals gives `II_T ≈ Σₖ cₖ θₖ tₖtₖᵀ`, `cₖ = |eₖ|/(2A)`. With angle
+//! differences φₖ = θₖ − θ̄ₖ (rest angles of any size are kept exactly, as for hinges):
+//!
+//! `E_T = Ā · (1 − ν) D/2 · ‖dev ΔII‖²`, `ΔII = Σₖ cₖ φₖ tₖtₖᵀ`, `‖dev X‖² = ‖X‖² − ½(tr X)²`,
+//!
+//! i.e. `½ φᵀBφ` with the constant PSD matrix `Bₖₗ = Ā (1 − ν) D cₖcₗ[(tₖ·tₗ)² − ½]`. The
+//! operator's error on the alternating right-triangle grid is a pure multiple of the identity
+//! (a twist z = κxy gives II = κ[[−1, 1], [1, −1]]), so its deviatoric part is exact there.
+//!
+//! A boundary (or non-manifold) edge has no second face: its midedge normal is free and touches
+//! this triangle only, so its angle is eliminated: it takes the value that minimizes the whole
+//! plate energy of the triangle given the other angles (the free edge's natural condition,
+//! zero moment, not a clamp), and B becomes Pᵀ B_dev P for that linear map P.
+//!
+//! Gradient Σₖ (Bφ)ₖ ∇θₖ; Hessian Σₖₗ Bₖₗ ∇θₖ∇θₗᵀ (PSD, the projection) + Σₖ (Bφ)ₖ ∇²θₖ.
+
+use super::hinge::wrap_offset;
+use super::{Element, Local, dihedral_angle, dihedral_gradient};
+use nalgebra::{Matrix3, Vector3};
+use num_dual::Dual64;
+
+const NO_WING: u8 = u8::MAX;
+
+/// The plate's energy ½ φᵀBφ in the edge angles φ of a rest triangle: (full, deviatoric),
+/// `Bₖₗ = Ā D cₖcₗ[(1 − ν)(tₖ·tₗ)² + ν]` and `Ā (1 − ν) D cₖcₗ[(tₖ·tₗ)² − ½]`.
+fn plate_matrices(rest: [Vector3<f64>; 3], d: f64, nu: f64) -> (Matrix3<f64>, Matrix3<f64>) {
+    let n = (rest[1] - rest[0]).cross(&(rest[2] - rest[0]));
+    let area = 0.5 * n.norm();
+    let mut t = [Vector3::zeros(); 3];
+    let mut c = [0.0; 3];
+    for k in 0..3 {
+        let e = rest[(k + 2) % 3] - rest[(k + 1) % 3];
+        t[k] = e.cross(&n).normalize();
+        c[k] = e.norm() / (2.0 * area);
+    }
+    let full = Matrix3::from_fn(|k, l| {
+        area * d * c[k] * c[l] * ((1.0 - nu) * t[k].dot(&t[l]).powi(2) + nu)
+    });
+    let dev = Matrix3::from_fn(|k, l| {
+        area * (1.0 - nu) * d * c[k] * c[l] * (t[k].dot(&t[l]).powi(2) - 0.5)
+    });
+    (full, dev)
+}
+
+/// Deviatoric shape-operator bending on one triangle and the triangles across its edges.
+#[derive(Clone, Debug)]
+pub struct MidedgeBend {
+    /// Stencil: the triangle's vertices, then the wing vertex across each interior edge.
+    v: [u32; 6],
+    /// Stencil size (3 + interior edges).
+    len: u8,
+    /// Stencil index of the wing across edge k (opposite vertex k), or none.
+    wing: [u8; 3],
+    /// Rest dihedral angle of edge k.
+    rest: [f64; 3],
+    /// The condensed stiffness matrix B [J] (rows and columns of free edges are zero).
+    b: [[f64; 3]; 3],
+}
+
+impl MidedgeBend {
+    /// The element of triangle `tri` (rest positions `rest`, positive area), with `wings[k]`
+    /// the vertex (index and rest position) across the edge opposite `tri[k]`, or `None` for a
+    /// free edge. `d` is the bending stiffness D [J], `nu` Poisson's ratio.
+    pub(crate) fn new(
+        tri: [u32; 3],
+        rest: [Vector3<f64>; 3],
+        wings: [Option<(u32, Vector3<f64>)>; 3],
+        d: f64,
+        nu: f64,
+    ) -> Self {
+        let (full, dev) = plate_matrices(rest, d, nu);
+        let mut v = [tri[0], tri[1], tri[2], 0, 0, 0];
+        let mut len = 3u8;
+        let mut wing = [NO_WING; 3];
+        let mut rest_angle = [0.0; 3];
+        for k in 0..3 {
+            if let Some((w, xw)) = wings[k] {
+                v[len as usize] = w;
+                wing[k] = len;
+                len += 1;
+                let x = [rest[(k + 1) % 3], rest[(k + 2) % 3], rest[k], xw];
+                let s: Vec<f64> = x.iter().flat_map(|p| [p.x, p.y, p.z]).collect();
+                rest_angle[k] = dihedral_angle(&s);
+            }
+        }
+        // Free edges take the angle that minimizes the whole plate energy given the others
+        // (zero moment across a free edge): φ_F = −B_FF⁻¹ B_FI φ_I with the full plate matrix,
+        // a linear map P: φ_I ↦ φ. Condensing with the deviatoric matrix alone would let the
+        // free edge cancel the deviator (κ⊥ = κ∥) and halve a boundary row's stiffness.
+        let free: Vec<usize> = (0..3).filter(|&k| wing[k] == NO_WING).collect();
+        let mut p = Matrix3::<f64>::identity();
+        if !free.is_empty() {
+            let mut s_emb = Matrix3::<f64>::identity();
+            let mut c = Matrix3::<f64>::zeros();
+            for &i in &free {
+                for j in 0..3 {
+                    if free.contains(&j) {
+                        s_emb[(i, j)] = full[(i, j)];
+                    } else {
+                        c[(i, j)] = full[(i, j)];
+                    }
+                }
+            }
+            let x = -s_emb.try_inverse().unwrap_or_else(Matrix3::zeros) * c;
+            for &i in &free {
+                p.set_row(i, &x.row(i));
+            }
+        }
+        let bm = p.transpose() * dev * p;
+        let mut b = [[0.0; 3]; 3];
+        for k in 0..3 {
+            for l in 0..3 {
+                b[k][l] = 0.5 * (bm[(k, l)] + bm[(l, k)]);
+            }
+        }
+        MidedgeBend {
+            v,
+            len,
+            wing,
+            rest: rest_angle,
+            b,
+        }
+    }
+
+    /// The condensed stiffness matrix B (energy ½ φᵀBφ) [J].
+    pub fn stiffness(&self) -> [[f64; 3]; 3] {
+        self.b
+    }
+
+    /// Adds `offset` to every vertex index.
+    pub fn offset_vertices(&mut self, offset: u32) {
+        let n = self.len as usize;
+        self.v[..n].iter_mut().for_each(|v| *v += offset);
+    }
+
+    /// Stencil indices of edge k's hinge (edge, edge, own vertex, wing).
+    fn hinge(&self, k: usize) -> Option<[usize; 4]> {
+        (self.wing[k] != NO_WING).then(|| [(k + 1) % 3, (k + 2) % 3, k, self.wing[k] as usize])
+    }
+
+    fn gather12(&self, x: &[Vector3<f64>], h: [usize; 4]) -> [f64; 12] {
+        let mut s = [0.0; 12];
+        for (a, &i) in h.iter().enumerate() {
+            let p = x[self.v[i] as usize];
+            s[3 * a..3 * a + 3].copy_from_slice(&[p.x, p.y, p.z]);
+        }
+        s
+    }
+
+    /// φₖ = θₖ − θ̄ₖ wrapped into (−π, π] (0 for free edges).
+    fn angles(&self, x: &[Vector3<f64>]) -> [f64; 3] {
+        let mut phi = [0.0; 3];
+        for (k, p) in phi.iter_mut().enumerate() {
+            if let Some(h) = self.hinge(k) {
+                let d = dihedral_angle(&self.gather12(x, h)) - self.rest[k];
+                *p = d - wrap_offset(d);
+            }
+        }
+        phi
+    }
+
+    fn quad(&self, phi: &[f64; 3]) -> ([f64; 3], f64) {
+        let mut f = [0.0; 3];
+        for (k, fk) in f.iter_mut().enumerate() {
+            *fk = (0..3).map(|l| self.b[k][l] * phi[l]).sum();
+        }
+        (f, 0.5 * (0..3).map(|k| phi[k] * f[k]).sum::<f64>())
+    }
+}
+
+impl Element for MidedgeBend {
+    fn vertices(&self) -> &[u32] {
+        &self.v[..self.len as usize]
+    }
+    fn energy(&self, x: &[Vector3<f64>]) -> f64 {
+        self.quad(&self.angles(x)).1
+    }
+    #[allow(clippy::needless_range_loop)] // stencil index arithmetic
+    fn eval(&self, x: &[Vector3<f64>], project: bool, out: &mut Local) {
+        let dofs = 3 * self.len as usize;
+        let phi = self.angles(x);
+        let (f, e) = self.quad(&phi);
+        // ∇θₖ spread over the stencil's DOFs.
+        let mut g = [[0.0; 18]; 3];
+        let mut xs12 = [[0.0; 12]; 3];
+        for k in 0..3 {
+            if let Some(h) = self.hinge(k) {
+                xs12[k] = self.gather12(x, h);
+                let gk = dihedral_gradient(&xs12[k]);
+                for (a, &i) in h.iter().enumerate() {
+                    for r in 0..3 {
+                        g[k][3 * i + r] = gk[3 * a + r];
+                    }
+                }
+            }
+        }
+        out.dofs = dofs;
+        out.energy = e;
+        for i in 0..dofs {
+            out.grad[i] = (0..3).map(|k| f[k] * g[k][i]).sum();
+        }
+        // Gauss–Newton part Σₖₗ Bₖₗ ∇θₖ∇θₗᵀ = Σₖ ∇θₖ (B∇θ)ₖᵀ.
+        let mut w = [[0.0; 18]; 3];
+        for k in 0..3 {
+            for i in 0..dofs {
+                w[k][i] = (0..3).map(|l| self.b[k][l] * g[l][i]).sum();
+            }
+        }
+        for c in 0..dofs {
+            for r in 0..dofs {
+                out.hess[c][r] = (0..3).map(|k| g[k][r] * w[k][c]).sum();
+            }
+        }
+        if !project {
+            // Curvature part Σₖ (Bφ)ₖ ∇²θₖ, ∇²θₖ column by column by dual numbers.
+            for k in 0..3 {
+                let Some(h) = self.hinge(k) else { continue };
+                if f[k] == 0.0 {
+                    continue;
+                }
+                for (a, &ia) in h.iter().enumerate() {
+                    for cc in 0..3 {
+                        let mut xd = xs12[k].map(Dual64::from_re);
+                        xd[3 * a + cc].eps = 1.0;
+                        let gd = dihedral_gradient(&xd);
+                        for (b, &ib) in h.iter().enumerate() {
+                            for rr in 0..3 {
+                                out.hess[3 * ia + cc][3 * ib + rr] += f[k] * gd[3 * b + rr].eps;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        for c in 0..dofs {
+            for r in 0..c {
+                let s = 0.5 * (out.hess[c][r] + out.hess[r][c]);
+                out.hess[c][r] = s;
+                out.hess[r][c] = s;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::energy::fd::check;
+
+    fn patch() -> Vec<Vector3<f64>> {
+        vec![
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(1.0, 0.0, 0.0),
+            Vector3::new(0.3, 0.9, 0.0),
+            Vector3::new(0.8, 0.9, 0.0),  // across edge 1–2 (opposite 0)
+            Vector3::new(-0.6, 0.5, 0.0), // across edge 2–0 (opposite 1)
+            Vector3::new(0.5, -0.8, 0.0), // across edge 0–1 (opposite 2)
+        ]
+    }
+
+    fn element(x: &[Vector3<f64>], free: Option<usize>) -> MidedgeBend {
+        let wings = [0, 1, 2].map(|k| (Some(k) != free).then(|| (3 + k as u32, x[3 + k])));
+        MidedgeBend::new([0, 1, 2], [x[0], x[1], x[2]], wings, 0.3, 0.3)
+    }
+
+    #[test]
+    fn finite_differences_with_and_without_a_free_edge() {
+        let x = patch();
+        let mut y = x.clone();
+        y[3].z += 0.2;
+        y[4].z -= 0.1;
+        y[5].z += 0.3;
+        y[1].y += 0.05;
+        check(&element(&x, None), &y, 1e-7, 1e-5);
+        check(&element(&x, Some(1)), &y, 1e-7, 1e-5);
+    }
+
+    #[test]
+    fn a_free_edge_takes_its_zero_moment_angle() {
+        let x = patch();
+        let (d, nu) = (0.3, 0.3);
+        let (full, dev) = plate_matrices([x[0], x[1], x[2]], d, nu);
+        let cond = element(&x, Some(1)).stiffness();
+        assert_eq!(cond[1], [0.0; 3]);
+        assert_eq!([cond[0][1], cond[2][1]], [0.0; 2]);
+        // Energy with φ₁ eliminated = deviatoric energy at φ₁ = −(B₁₀φ₀ + B₁₂φ₂)/B₁₁.
+        let (p0, p2) = (0.3, -0.7);
+        let p1 = -(full[(1, 0)] * p0 + full[(1, 2)] * p2) / full[(1, 1)];
+        let phi = Vector3::new(p0, p1, p2);
+        let want = 0.5 * phi.dot(&(dev * phi));
+        let got = 0.5 * (cond[0][0] * p0 * p0 + 2.0 * cond[0][2] * p0 * p2 + cond[2][2] * p2 * p2);
+        assert!((got - want).abs() < 1e-12 * want.abs(), "{got} vs {want}");
+        // Rest angles of any size are kept: a folded rest shape has zero energy.
+        let mut r = x.clone();
+        r[3].z += 0.7;
+        r[5].z -= 0.4;
+        let e = MidedgeBend::new(
+            [0, 1, 2],
+            [r[0], r[1], r[2]],
+            [0, 1, 2].map(|k| Some((3 + k as u32, r[3 + k]))),
+            1.0,
+            0.3,
+        );
+        assert!(e.energy(&r).abs() < 1e-30);
+        assert!(e.energy(&x) > 1e-3);
+    }
+}
