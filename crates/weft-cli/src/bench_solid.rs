@@ -109,7 +109,7 @@ pub(crate) fn suite(quick: bool) -> Result<Vec<Row>, String> {
     let sizes: &[usize] = if quick {
         &[16, 32]
     } else {
-        &[32, 64, 128, 256]
+        &[32, 64, 128, 256, 317]
     };
     let frames = if quick { 2 } else { 6 };
     let mut rows = Vec::new();
@@ -152,13 +152,47 @@ pub(crate) fn suite(quick: bool) -> Result<Vec<Row>, String> {
         });
     };
     for &n in sizes {
-        let m = run(cloth(n), frames)?;
+        // The largest (317² ≈ 100k vertices) runs fewer frames: ~1 min per step.
+        let m = run(cloth(n), if n > 256 { 2 } else { frames })?;
         fit.push((
             (m.vertices as f64).ln(),
             (m.assembly + m.factor + m.solve).ln(),
         ));
         push(&mut rows, format!("hanging cloth {n}×{n}"), &m);
     }
+    // Thread scaling: the same cloth on 1 and 2 threads (bit-identical results; assembly and
+    // the line search's energy sums run in parallel, the factorization does not).
+    let n = if quick { 32 } else { 128 };
+    let mut per_thread = Vec::new();
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .map_err(|e| e.to_string())?;
+        let m = pool.install(|| run(cloth(n), frames))?;
+        rows.push(Row {
+            case: format!("hanging cloth {n}×{n} on {threads} thread(s): ms per step"),
+            nodes: m.vertices,
+            value: m.ms_per_step,
+            unit: "ms",
+            target: "",
+        });
+        rows.push(Row {
+            case: format!("hanging cloth {n}×{n} on {threads} thread(s): assembly per iteration"),
+            nodes: m.vertices,
+            value: m.assembly,
+            unit: "ms",
+            target: "",
+        });
+        per_thread.push(m.ms_per_step);
+    }
+    rows.push(Row {
+        case: format!("hanging cloth {n}×{n}: speedup 1 → 2 threads"),
+        nodes: 0,
+        value: per_thread[0] / per_thread[1],
+        unit: "×",
+        target: "",
+    });
     let (count, len) = if quick { (100, 32) } else { (1000, 32) };
     let m = run(hair(count, len), frames)?;
     push(&mut rows, format!("hair {count} strands × {len}"), &m);

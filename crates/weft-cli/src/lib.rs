@@ -20,6 +20,10 @@ use std::process::ExitCode;
 #[derive(Parser, Debug)]
 #[command(name = "weft", version, about)]
 pub struct Cli {
+    /// Worker threads for the solvers (default: one per core). Results are bit-identical
+    /// whatever the count.
+    #[arg(long, global = true, value_name = "N")]
+    threads: Option<usize>,
     #[command(subcommand)]
     command: Command,
 }
@@ -63,8 +67,24 @@ where
             };
         }
     };
+    match cli.threads {
+        Some(n) => match rayon::ThreadPoolBuilder::new()
+            .num_threads(n.max(1))
+            .build()
+        {
+            Ok(pool) => pool.install(|| dispatch(cli.command)),
+            Err(e) => {
+                eprintln!("error: cannot start {n} threads: {e}");
+                ExitCode::from(1)
+            }
+        },
+        None => dispatch(cli.command),
+    }
+}
+
+fn dispatch(command: Command) -> ExitCode {
     let registry = weft_nodes::registry();
-    match cli.command {
+    match command {
         Command::Run(a) => run::run(&registry, a),
         Command::Validate { graphs } => validate(&registry, &graphs),
         Command::Nodes { json, filter } => {

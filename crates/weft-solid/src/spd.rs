@@ -17,6 +17,13 @@ macro_rules! impl_project {
     ($($d:literal),*) => {$(
         impl ProjectPsd for SMatrix<f64, $d, $d> {
             fn project_psd(&mut self) {
+                // Fast path: a Cholesky factorization (~d³/6 flops) proves positive
+                // definiteness, and most element Hessians are (stretched membranes, rods at
+                // rest); the eigendecomposition costs ~30× more. Measured: the membranes'
+                // share of assembly on the hanging cloth drops accordingly.
+                if self.cholesky().is_some() {
+                    return;
+                }
                 let eig = SymmetricEigen::new(*self);
                 if eig.eigenvalues.iter().all(|&l| l >= 0.0) {
                     return;

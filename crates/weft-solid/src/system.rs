@@ -36,6 +36,21 @@ impl Elements {
         self.bends.iter().for_each(|e| f(e));
         self.springs.iter().for_each(|e| f(e));
     }
+    /// The `i`-th element in [`Elements::for_each`] order.
+    pub fn get(&self, mut i: usize) -> &dyn Element {
+        macro_rules! pick {
+            ($($v:ident),*) => {$(
+                if i < self.$v.len() {
+                    return &self.$v[i];
+                }
+                i -= self.$v.len();
+            )*};
+        }
+        pick!(
+            membranes, hinges, shells, midedges, stretches, bends, springs
+        );
+        panic!("element index out of range")
+    }
     /// Number of elements.
     pub fn len(&self) -> usize {
         self.membranes.len()
