@@ -16,6 +16,7 @@ pub mod advect;
 pub mod drag;
 pub mod grid;
 pub mod pressure;
+pub mod raster;
 
 pub use drag::{DragParams, FluidProperties, Shape, drag_force, lift_force};
 pub use grid::{Axis, Boundaries, Boundary, Domain, FluidError, MacGrid};
