@@ -3,7 +3,8 @@
 //!
 //! Implicit Euler is the minimizer of the incremental potential
 //! `E(x) = Σᵢ mᵢ/(2h²)‖xᵢ − x̂ᵢ‖² + Σᵢ c mᵢ/(2h)‖xᵢ − x⁰ᵢ‖² + Σₑ Eₑ(x)`,
-//! `x̂ = x⁰ + h v⁰ + h² (g + M⁻¹f)` (the damping term gives the force −c m v with v = (x − x⁰)/h).
+//! `x̂ = x⁰ + h v⁰ + h² (g + M⁻¹f)` (the damping term gives the force −c m v with v = (x − x⁰)/h),
+//! plus, for drag towards a flow u, `Σᵢ (1/2h) rᵢᵀ Dᵢ rᵢ`, `rᵢ = xᵢ − x⁰ᵢ − h uᵢ` (force −D(v − u)).
 //! Its Hessian, with element Hessians projected to PSD, is SPD whenever every free vertex has
 //! mass, so each Newton direction descends and a backtracking line search on E makes the
 //! iteration converge from any start. The sparsity pattern (3×3 blocks between vertices that
@@ -374,8 +375,14 @@ impl Integrator {
                 let m = sys.mass[i];
                 e += match mode {
                     Mode::Dynamic { h } => {
-                        m / (2.0 * h * h) * (x[i] - self.x_hat[i]).norm_squared()
-                            + sys.damping(i) * m / (2.0 * h) * (x[i] - x0[i]).norm_squared()
+                        let mut e = m / (2.0 * h * h) * (x[i] - self.x_hat[i]).norm_squared()
+                            + sys.damping(i) * m / (2.0 * h) * (x[i] - x0[i]).norm_squared();
+                        // Drag: (1/2h) rᵀDr with r = x − x⁰ − h u, whose gradient is D(v − u).
+                        if let Some(d) = sys.drag(i) {
+                            let r = x[i] - x0[i] - h * d.flow;
+                            e += 0.5 / h * r.dot(&(d.matrix * r));
+                        }
+                        e
                     }
                     // Static: the potential of gravity and the constant loads.
                     Mode::Static => -(m * sys.gravity + sys.force(i)).dot(&x[i]),
@@ -417,6 +424,17 @@ impl Integrator {
                 Mode::Static => (-(m * sys.gravity + sys.force(i)), 0.0),
             };
             let f = f as usize;
+            let mut g = g;
+            if let (Mode::Dynamic { h }, Some(d)) = (mode, sys.drag(i)) {
+                // Gradient D(v − u), Hessian D/h: a full 3×3 diagonal block.
+                g += d.matrix * ((x[i] - x0[i]) / h - d.flow);
+                for cc in 0..3 {
+                    let base = self.col_ptr[3 * f + cc] + 3 * self.diag_slot[f] as usize;
+                    for rr in 0..3 {
+                        self.values[base + rr] += d.matrix[(rr, cc)] / h;
+                    }
+                }
+            }
             for c in 0..3 {
                 self.grad[3 * f + c] += g[c];
                 let k = self.col_ptr[3 * f + c] + 3 * self.diag_slot[f] as usize + c;
@@ -722,8 +740,12 @@ impl Integrator {
                 v[i] = (x[i] - x0[i]) / h;
             } else {
                 let m = sys.mass[i];
-                v[i] +=
-                    h * ((force[i] + sys.force(i)) / m + sys.gravity - sys.damping(i) * state.v[i]);
+                let drag = sys
+                    .drag(i)
+                    .map_or_else(Vector3::zeros, |d| -(d.matrix * (state.v[i] - d.flow)));
+                v[i] += h
+                    * ((force[i] + sys.force(i) + drag) / m + sys.gravity
+                        - sys.damping(i) * state.v[i]);
                 x[i] = x0[i] + h * v[i];
             }
         }

@@ -17,4 +17,4 @@ pub mod spd;
 pub mod system;
 
 pub use integrator::{Integrator, Method, Settings, StepError, StepStats};
-pub use system::{Elements, SolidSystem, State, SystemError};
+pub use system::{Elements, SolidSystem, State, SystemError, VertexDrag};

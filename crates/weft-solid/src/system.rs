@@ -3,7 +3,7 @@
 use crate::energy::{
     Element, Hinge, Membrane, MidedgeBend, RodBend, RodStretch, ShellBend, Spring,
 };
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
 /// Every energy element of a system, grouped by type (no dynamic dispatch in storage).
 #[derive(Clone, Debug, Default)]
@@ -83,6 +83,29 @@ pub struct SolidSystem {
     pub damping: Vec<f64>,
     /// Constant external force per vertex [N] (empty for none).
     pub forces: Vec<Vector3<f64>>,
+    /// Drag towards a flow, per vertex (empty for none): the force −D (v − u) with D a
+    /// symmetric positive semidefinite matrix [kg/s] and u the flow's velocity [m/s]. Linear
+    /// in v, so implicit Euler treats it exactly (the fluid coupling lags D and u between its
+    /// Newton stages).
+    pub drag: Vec<VertexDrag>,
+}
+
+/// Linear drag on one vertex: force −D (v − u).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VertexDrag {
+    /// Drag matrix D [kg/s], symmetric positive semidefinite.
+    pub matrix: Matrix3<f64>,
+    /// The flow velocity u at the vertex [m/s].
+    pub flow: Vector3<f64>,
+}
+
+impl Default for VertexDrag {
+    fn default() -> Self {
+        VertexDrag {
+            matrix: Matrix3::zeros(),
+            flow: Vector3::zeros(),
+        }
+    }
 }
 
 impl SolidSystem {
@@ -96,6 +119,7 @@ impl SolidSystem {
             gravity: Vector3::zeros(),
             damping: Vec::new(),
             forces: Vec::new(),
+            drag: Vec::new(),
         }
     }
     /// Damping coefficient of vertex `i` [1/s] (zero when none are set).
@@ -105,6 +129,10 @@ impl SolidSystem {
     /// External force on vertex `i` (zero when none are set).
     pub fn force(&self, i: usize) -> Vector3<f64> {
         self.forces.get(i).copied().unwrap_or_else(Vector3::zeros)
+    }
+    /// Drag on vertex `i` (none when none are set).
+    pub fn drag(&self, i: usize) -> Option<&VertexDrag> {
+        self.drag.get(i)
     }
 }
 
@@ -173,8 +201,9 @@ impl SolidSystem {
             ("mass", self.mass.len()),
             ("pinned", self.pinned.len()),
             ("forces", self.forces.len()),
+            ("drag", self.drag.len()),
         ] {
-            if got != n && !(what == "forces" && got == 0) {
+            if got != n && !((what == "forces" || what == "drag") && got == 0) {
                 return Err(SystemError::Length { what, got, want: n });
             }
         }
@@ -191,6 +220,15 @@ impl SolidSystem {
                 return Err(SystemError::NonFinite {
                     vertex: i,
                     what: "position",
+                });
+            }
+            if let Some(d) = self.drag.get(i)
+                && !(d.matrix.iter().chain(d.flow.iter()).all(|c| c.is_finite())
+                    && d.matrix == d.matrix.transpose())
+            {
+                return Err(SystemError::NonFinite {
+                    vertex: i,
+                    what: "drag (or an asymmetric drag matrix)",
                 });
             }
             if !state.v[i].iter().all(|c| c.is_finite()) {

@@ -412,3 +412,69 @@ fn a_failed_step_leaves_the_state_unchanged_and_says_why() {
         .unwrap_err();
     assert_eq!(e.to_string(), "vertex 2 has a non-finite position");
 }
+
+/// Settling fibre (VERIFY.md, Drag and coupling), the solid side: a slender rigid-ish fibre in
+/// still fluid with the slender-body drag γ⊥ = 4πμL/(ln(L/d) + 0.84) and
+/// γ∥ = 2πμL/(ln(L/d) − 0.20), lumped per vertex as D = (l_v/L)[γ⊥(I − eeᵀ) + γ∥ eeᵀ], falls at
+/// W/γ⊥ when horizontal and W/γ∥ when vertical (W its net weight). Implicit Euler's steady
+/// state is exact (v = v + h(g − Dv/m) ⇒ v = mg/D), so after 20 time constants the speeds
+/// match to 1e-6 (measured: 2e-8) and their ratio γ⊥/γ∥ (1.73 here) with them.
+#[test]
+fn a_settling_fibre_falls_at_its_slender_body_speeds() {
+    use weft_solid::VertexDrag;
+    let (len, d, mu, n) = (0.01, 1e-5, 1.002e-3, 8usize);
+    let (rho_s, rho_f) = (1300.0, 998.2);
+    let area = PI * d * d / 4.0;
+    let ln = (len / d).ln();
+    let g_perp = 4.0 * PI * mu * len / (ln + 0.84);
+    let g_par = 2.0 * PI * mu * len / (ln - 0.20);
+    let weight = (rho_s - rho_f) * G * area * len;
+    let mut speeds = Vec::new();
+    for vertical in [false, true] {
+        let (mut sys, mut state) = rod(n, len, Vector3::zeros(), rho_s * area, 1e3, 1e-9);
+        // Net weight (buoyancy included) as the gravity on the solid's mass.
+        sys.gravity = Vector3::new(0.0, -G * (rho_s - rho_f) / rho_s, 0.0);
+        let e = if vertical {
+            Vector3::new(0.0, 1.0, 0.0)
+        } else {
+            Vector3::new(1.0, 0.0, 0.0)
+        };
+        if vertical {
+            for (i, p) in state.x.iter_mut().enumerate() {
+                *p = Vector3::new(0.0, i as f64 * len / n as f64, 0.0);
+            }
+        }
+        let lv = |i: usize| if i == 0 || i == n { 0.5 } else { 1.0 } * len / n as f64;
+        let ee = e * e.transpose();
+        sys.drag = (0..=n)
+            .map(|i| VertexDrag {
+                matrix: lv(i) / len * (g_perp * (nalgebra::Matrix3::identity() - ee) + g_par * ee),
+                flow: Vector3::zeros(),
+            })
+            .collect();
+        let m_total = rho_s * area * len;
+        let tau = m_total / g_par.min(g_perp);
+        let h = tau / 4.0;
+        let mut integ = Integrator::new(&sys).unwrap();
+        let settings = Settings {
+            method: Method::Newton,
+            tolerance: 1e-12,
+            max_iterations: 50,
+        };
+        for _ in 0..80 {
+            integ.step(&sys, &mut state, None, h, &settings).unwrap();
+        }
+        let vy: f64 = state.v.iter().map(|v| v.y).sum::<f64>() / (n + 1) as f64;
+        speeds.push(-vy);
+    }
+    let (want_h, want_v) = (weight / g_perp, weight / g_par);
+    eprintln!(
+        "settling fibre: horizontal {:e} m/s (theory {want_h:e}), vertical {:e} (theory {want_v:e}), ratio {}",
+        speeds[0],
+        speeds[1],
+        speeds[1] / speeds[0]
+    );
+    assert!((speeds[0] / want_h - 1.0).abs() < 1e-6, "{speeds:?}");
+    assert!((speeds[1] / want_v - 1.0).abs() < 1e-6, "{speeds:?}");
+    assert!(((speeds[1] / speeds[0]) / (g_perp / g_par) - 1.0).abs() < 1e-6);
+}
