@@ -12,7 +12,8 @@ use weft_graph::{Context, Graph, Registry, load_str};
 /// Arguments of `weft bench`.
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {
-    /// Suite to run: `graph` (engine overhead) or `solid` (cloth and hair solver).
+    /// Suite to run: `graph` (engine overhead), `solid` (cloth and hair solver) or `fluid`
+    /// (pressure solve against memory bandwidth).
     suite: String,
     /// Fewer repetitions (for CI smoke runs).
     #[arg(long)]
@@ -180,8 +181,15 @@ pub fn run(reg: &Arc<Registry>, a: BenchArgs) -> ExitCode {
                 return ExitCode::from(1);
             }
         },
+        "fluid" => match crate::bench_fluid::suite(a.quick) {
+            Ok(r) => r,
+            Err(e) => {
+                eprintln!("error: {e}");
+                return ExitCode::from(1);
+            }
+        },
         other => {
-            eprintln!("error: unknown bench suite '{other}' (suites: graph, solid)");
+            eprintln!("error: unknown bench suite '{other}' (suites: graph, solid, fluid)");
             return ExitCode::from(2);
         }
     };

@@ -7,6 +7,7 @@
 #![warn(missing_docs)]
 
 mod bench;
+mod bench_fluid;
 mod bench_solid;
 mod nodes;
 mod run;

@@ -371,6 +371,28 @@ impl Projection {
         Ok(stats)
     }
 
+    /// Cells (unknowns) of the system.
+    pub fn unknowns(&self) -> usize {
+        self.n
+    }
+
+    /// Bytes one CG iteration must move through memory at least, counting each array pass
+    /// once: the matrix–vector product (values and column indices, the vector, the result),
+    /// both triangular sweeps of the preconditioner (factor values, indices, vectors), and the
+    /// vector updates and dot products (14 vector passes). For the bandwidth fraction that
+    /// `weft bench fluid` reports.
+    pub fn bytes_per_iteration(&self) -> f64 {
+        let (n, nnz, lnz) = (
+            self.n as f64,
+            self.col.len() as f64,
+            self.l_col.len() as f64,
+        );
+        let matvec = nnz * 12.0 + n * 16.0;
+        let precondition = 2.0 * (lnz * 12.0) + n * 8.0 * 4.0;
+        let vectors = n * 8.0 * 14.0;
+        matvec + precondition + vectors
+    }
+
     /// IC(0): L Lᵀ ≈ A on A's lower pattern.
     fn factor_ic0(&mut self) {
         for r in 0..self.n {
