@@ -320,10 +320,12 @@ impl MacGrid {
         self.apply_boundaries();
     }
 
-    /// The axis-`a` velocity component at point `p`, trilinear in that component's faces.
-    /// Outside the domain the nearest face values are used (clamped), or wrapped on periodic
-    /// axes.
-    pub fn sample(&self, a: usize, p: [f64; 3]) -> f64 {
+    /// The trilinear stencil of point `p` on the axis-`a` faces: eight (face index, weight)
+    /// pairs, weights summing to one. Outside the domain the nearest faces are used
+    /// (clamped), or the stencil wraps on periodic axes (where only faces 0..n−1 are
+    /// addressed: face n is face 0's copy). Sampling and rasterization share it, so what the
+    /// grid gives a solid and what the solid gives the grid use the same weights.
+    pub fn face_stencil(&self, a: usize, p: [f64; 3]) -> [(usize, f64); 8] {
         let dom = &self.domain;
         let d = dom.face_dims(a);
         let mut base = [0usize; 3];
@@ -349,8 +351,7 @@ impl MacGrid {
                 next[b] = (i0 + 1).min(d[b] - 1);
             }
         }
-        let mut v = 0.0;
-        for corner in 0..8 {
+        std::array::from_fn(|corner| {
             let mut idx = [0usize; 3];
             let mut w = 1.0;
             for b in 0..3 {
@@ -358,11 +359,18 @@ impl MacGrid {
                 idx[b] = if hi { next[b] } else { base[b] };
                 w *= if hi { frac[b] } else { 1.0 - frac[b] };
             }
-            if w != 0.0 {
-                v += w * self.vel[a][dom.face(a, idx[0], idx[1], idx[2])];
-            }
-        }
-        v
+            (dom.face(a, idx[0], idx[1], idx[2]), w)
+        })
+    }
+
+    /// The axis-`a` velocity component at point `p`, trilinear in that component's faces
+    /// (see [`MacGrid::face_stencil`]).
+    pub fn sample(&self, a: usize, p: [f64; 3]) -> f64 {
+        self.face_stencil(a, p)
+            .iter()
+            .filter(|(_, w)| *w != 0.0)
+            .map(|&(f, w)| w * self.vel[a][f])
+            .sum()
     }
 
     /// The velocity vector at `p`.

@@ -110,7 +110,8 @@ pub fn sample_triangle(
     }
 }
 
-/// Clears the grid's solid fields and rasterizes `samples` into them.
+/// Clears the grid's solid fields and rasterizes `samples` into them, with the weights of
+/// [`MacGrid::face_stencil`].
 pub fn rasterize(grid: &mut MacGrid, samples: &[Sample], max_solid_fraction: f64) -> RasterStats {
     let dom = grid.domain.clone();
     let mut stats = RasterStats::default();
@@ -129,30 +130,10 @@ pub fn rasterize(grid: &mut MacGrid, samples: &[Sample], max_solid_fraction: f64
         }
         stats.samples += 1;
         for a in 0..3 {
-            let d = dom.face_dims(a);
-            // Trilinear weights on axis-a faces (positions offset by ½ across the axis).
-            let mut base = [0usize; 3];
-            let mut frac = [0.0; 3];
-            for b in 0..3 {
-                let off = if b == a { 0.0 } else { 0.5 };
-                let x =
-                    ((s.position[b] - dom.origin[b]) / dom.dx - off).clamp(0.0, (d[b] - 1) as f64);
-                let i0 = (x.floor() as usize).min(d[b].saturating_sub(2));
-                base[b] = i0;
-                frac[b] = if d[b] > 1 { x - i0 as f64 } else { 0.0 };
-            }
-            for corner in 0..8 {
-                let mut idx = [0usize; 3];
-                let mut w = 1.0;
-                for b in 0..3 {
-                    let hi = (corner >> b) & 1 == 1;
-                    idx[b] = (base[b] + hi as usize).min(d[b] - 1);
-                    w *= if hi { frac[b] } else { 1.0 - frac[b] };
-                }
+            for (f, w) in grid.face_stencil(a, s.position) {
                 if w == 0.0 {
                     continue;
                 }
-                let f = dom.face(a, idx[0], idx[1], idx[2]);
                 let wv = w * s.volume;
                 vol[a][f] += wv;
                 kk[a][f] += wv * s.drag[a];
@@ -161,7 +142,7 @@ pub fn rasterize(grid: &mut MacGrid, samples: &[Sample], max_solid_fraction: f64
             }
         }
     }
-    // Periodic copies of a face (index 0 and n) are one face: pool what landed on either.
+    // Periodic axes: the stencil only addresses faces 0..n−1; face n is face 0's copy.
     for a in 0..3 {
         if !dom.boundaries.is_periodic(a) {
             continue;
@@ -180,9 +161,7 @@ pub fn rasterize(grid: &mut MacGrid, samples: &[Sample], max_solid_fraction: f64
                 };
                 let (lo, hi) = (at(0), at(n));
                 for acc in [&mut vol, &mut kk, &mut mk, &mut mv] {
-                    let sum = acc[a][lo] + acc[a][hi];
-                    acc[a][lo] = sum;
-                    acc[a][hi] = sum;
+                    acc[a][hi] = acc[a][lo];
                 }
             }
         }

@@ -13,6 +13,7 @@
 
 mod behavior;
 mod build;
+mod coupled;
 mod error;
 mod stepper;
 
@@ -21,5 +22,8 @@ pub use behavior::{
     RodMaterial,
 };
 pub use build::{Compiled, Pin, SystemBuilder, compile};
+pub use coupled::{
+    CoupledError, CoupledSettings, CoupledStats, CoupledStepper, Coupling, DragElement, DragShape,
+};
 pub use error::SimError;
 pub use stepper::{FrameStats, SimState, SolidStepper, StepperSettings};
