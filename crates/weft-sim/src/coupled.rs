@@ -272,6 +272,8 @@ impl CoupledStepper {
         }
         let mut solid = state.clone();
         let (mut v_prev, mut u_prev) = (state.v.clone(), fluid.vel.clone());
+        let mut omega = 0.5;
+        let mut r_prev: Option<Vec<Vector3<f64>>> = None;
         let max_it = match settings.method {
             Coupling::Newton => settings.max_iterations.max(1),
             _ => 1,
@@ -284,7 +286,15 @@ impl CoupledStepper {
             let grad = self
                 .gradient
                 .get_or_insert_with(|| MacGrid::new(fluid.domain.clone()));
-            pressure_gradient(&fluid, grad);
+            // The first iteration sees the fluid as the last step left it (divergence-free,
+            // with its pressure); later ones the latest projection. Not u*: it still holds
+            // this step's gravity, which the pressure has yet to balance.
+            let seen = if it == 0 && settings.method != Coupling::OneWay {
+                &*grid
+            } else {
+                &fluid
+            };
+            pressure_gradient(seen, grad);
             let mut drag_m = vec![Matrix3::<f64>::zeros(); n];
             let mut drag_mu = vec![Vector3::<f64>::zeros(); n];
             let mut force = vec![Vector3::<f64>::zeros(); n];
@@ -299,7 +309,7 @@ impl CoupledStepper {
                     .map(|j| pt.weights[j] * vk[pt.verts[j] as usize])
                     .sum();
                 let p = [pos.x, pos.y, pos.z];
-                let u = Vector3::from(fluid.velocity_at(p));
+                let u = Vector3::from(seen.velocity_at(p));
                 let gp = Vector3::from(grad.velocity_at(p));
                 let k = drag_diagonal(e, xk, &settings.fluid, mu, (vel - u).norm());
                 for j in 0..3 {
@@ -357,6 +367,31 @@ impl CoupledStepper {
                 .iter()
                 .zip(&v_prev)
                 .fold(0.0f64, |m, (a, b)| m.max((a - b).amax()));
+            if settings.method == Coupling::Newton && it > 0 {
+                // Aitken Δ² relaxation of the solid velocity (Irons & Tuck 1969; Küttler &
+                // Wall 2008): the plain fixed point diverges when the fluid around a light
+                // solid is heavier than it (the added-mass effect: the pressure's reply to the
+                // solid's motion is lagged), so the update is scaled by ω, re-estimated from
+                // the last two residuals r = ṽ − v.
+                let r: Vec<Vector3<f64>> =
+                    next.v.iter().zip(&solid.v).map(|(a, b)| a - b).collect();
+                if let Some(rp) = &r_prev {
+                    let (mut num, mut den) = (0.0, 0.0);
+                    for (a, b) in r.iter().zip(rp) {
+                        let d = a - b;
+                        num += b.dot(&d);
+                        den += d.dot(&d);
+                    }
+                    if den > 0.0 {
+                        omega = (-omega * num / den).clamp(1e-4, 1.0);
+                    }
+                }
+                for (i, ri) in r.iter().enumerate() {
+                    next.v[i] = solid.v[i] + omega * ri;
+                    next.x[i] = state.x[i] + h * next.v[i];
+                }
+                r_prev = Some(r);
+            }
             solid = next;
             if settings.method == Coupling::OneWay {
                 stats.residuals.push([dv, 0.0]);

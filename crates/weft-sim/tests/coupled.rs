@@ -15,9 +15,21 @@ fn strand(
     v: [f64; 3],
     radius: f64,
 ) -> (SolidSystem, State, Vec<DragElement>) {
+    strand_of(n, len, start, v, radius, 1300.0)
+}
+
+/// The same with a given density [kg/m³].
+fn strand_of(
+    n: usize,
+    len: f64,
+    start: [f64; 3],
+    v: [f64; 3],
+    radius: f64,
+    density: f64,
+) -> (SolidSystem, State, Vec<DragElement>) {
     let area = std::f64::consts::PI * radius * radius;
     let l = len / n as f64;
-    let m = 1300.0 * area * l;
+    let m = density * area * l;
     let mut mass = vec![m; n + 1];
     mass[0] *= 0.5;
     mass[n] *= 0.5;
