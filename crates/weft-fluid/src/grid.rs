@@ -209,6 +209,27 @@ impl Domain {
         [0, 1, 2].map(|b| self.origin[b] + (idx[b] as f64 + 0.5) * self.dx)
     }
 
+    /// The boundary face pairs of axis `a`: for every row of faces across the axis, the
+    /// indices of its first (at the axis' minimum) and last (at its maximum) face. On a
+    /// periodic axis these are the two copies of one face.
+    pub fn boundary_face_pairs(&self, a: usize) -> impl Iterator<Item = (usize, usize)> + '_ {
+        let d = self.face_dims(a);
+        let n = self.cells[a];
+        let (b1, b2) = ((a + 1) % 3, (a + 2) % 3);
+        (0..d[b2]).flat_map(move |s| {
+            (0..d[b1]).map(move |t| {
+                let at = |along: usize| {
+                    let mut idx = [0; 3];
+                    idx[a] = along;
+                    idx[b1] = t;
+                    idx[b2] = s;
+                    self.face(a, idx[0], idx[1], idx[2])
+                };
+                (at(0), at(n))
+            })
+        })
+    }
+
     /// Size of the domain [m].
     pub fn size(&self) -> [f64; 3] {
         [0, 1, 2].map(|a| self.cells[a] as f64 * self.dx)
@@ -280,31 +301,18 @@ impl MacGrid {
     /// Imposes the boundary conditions on the boundary faces: no flow through walls, the
     /// prescribed flow at inflows, and equal values on the two copies of a periodic face.
     pub fn apply_boundaries(&mut self) {
-        let dom = &self.domain;
         for a in 0..3 {
-            let d = dom.face_dims(a);
-            let n = dom.cells[a];
-            let (b1, b2) = ((a + 1) % 3, (a + 2) % 3);
-            for s in 0..d[b2] {
-                for t in 0..d[b1] {
-                    let at = |along: usize| {
-                        let mut idx = [0; 3];
-                        idx[a] = along;
-                        idx[b1] = t;
-                        idx[b2] = s;
-                        dom.face(a, idx[0], idx[1], idx[2])
-                    };
-                    let (lo, hi) = (at(0), at(n));
-                    if dom.boundaries.is_periodic(a) {
-                        self.vel[a][hi] = self.vel[a][lo];
-                        continue;
-                    }
-                    for (face, side) in [(lo, dom.boundaries.lo[a]), (hi, dom.boundaries.hi[a])] {
-                        match side {
-                            Boundary::Wall => self.vel[a][face] = 0.0,
-                            Boundary::Inflow(v) => self.vel[a][face] = v[a],
-                            Boundary::Open | Boundary::Periodic => {}
-                        }
+            let b = self.domain.boundaries;
+            for (lo, hi) in self.domain.boundary_face_pairs(a) {
+                if b.is_periodic(a) {
+                    self.vel[a][hi] = self.vel[a][lo];
+                    continue;
+                }
+                for (face, side) in [(lo, b.lo[a]), (hi, b.hi[a])] {
+                    match side {
+                        Boundary::Wall => self.vel[a][face] = 0.0,
+                        Boundary::Inflow(v) => self.vel[a][face] = v[a],
+                        Boundary::Open | Boundary::Periodic => {}
                     }
                 }
             }

@@ -144,22 +144,8 @@ pub fn rasterize(grid: &mut MacGrid, samples: &[Sample], max_solid_fraction: f64
     }
     // Periodic axes: the stencil only addresses faces 0..n−1; face n is face 0's copy.
     for a in 0..3 {
-        if !dom.boundaries.is_periodic(a) {
-            continue;
-        }
-        let d = dom.face_dims(a);
-        let n = dom.cells[a];
-        let (b1, b2) = ((a + 1) % 3, (a + 2) % 3);
-        for s2 in 0..d[b2] {
-            for t in 0..d[b1] {
-                let at = |along: usize| {
-                    let mut idx = [0; 3];
-                    idx[a] = along;
-                    idx[b1] = t;
-                    idx[b2] = s2;
-                    dom.face(a, idx[0], idx[1], idx[2])
-                };
-                let (lo, hi) = (at(0), at(n));
+        if dom.boundaries.is_periodic(a) {
+            for (lo, hi) in dom.boundary_face_pairs(a) {
                 for acc in [&mut vol, &mut kk, &mut mk, &mut mv] {
                     acc[a][hi] = acc[a][lo];
                 }

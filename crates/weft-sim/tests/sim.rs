@@ -26,6 +26,19 @@ fn pins(target: &str, vertices: Vec<u32>) -> SceneElement {
     a
 }
 
+/// A horizontal n × n cloth pinned at the two corners of its last row.
+fn hanging_cloth(n: usize) -> Vec<SceneElement> {
+    let horizontal = SceneElement::new(
+        "cloth",
+        ElementKind::Cloth,
+        Geometry::Mesh(grid([1.0, 1.0], [n, n], Plane::Xz, [0.0, 0.0, 0.0])),
+    );
+    vec![
+        horizontal,
+        pins("cloth", vec![(n * n - n) as u32, (n * n - 1) as u32]),
+    ]
+}
+
 fn tree() -> BehaviorTree {
     BehaviorTree {
         behaviors: vec![
@@ -166,15 +179,7 @@ fn a_non_manifold_edge_gets_no_bending_and_one_warning() {
 #[test]
 fn a_pinned_cloth_falls_swings_and_stays_finite() {
     let n = 9;
-    let horizontal = SceneElement::new(
-        "cloth",
-        ElementKind::Cloth,
-        Geometry::Mesh(grid([1.0, 1.0], [n, n], Plane::Xz, [0.0, 0.0, 0.0])),
-    );
-    let scene = vec![
-        horizontal,
-        pins("cloth", vec![(n * n - n) as u32, (n * n - 1) as u32]),
-    ];
+    let scene = hanging_cloth(n);
     let c = Arc::new(compile(&scene, &tree()).unwrap());
     let mut s = SolidStepper::new(
         c,
@@ -325,15 +330,7 @@ fn repeated_attachment_vertices_attach_once_and_repeated_behaviors_warn() {
 #[test]
 fn a_cloth_gives_identical_bits_on_one_two_and_three_threads() {
     let n = 40;
-    let horizontal = SceneElement::new(
-        "cloth",
-        ElementKind::Cloth,
-        Geometry::Mesh(grid([1.0, 1.0], [n, n], Plane::Xz, [0.0, 0.0, 0.0])),
-    );
-    let scene = vec![
-        horizontal,
-        pins("cloth", vec![(n * n - n) as u32, (n * n - 1) as u32]),
-    ];
+    let scene = hanging_cloth(n);
     let c = Arc::new(compile(&scene, &tree()).unwrap());
     let run = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new()

@@ -238,13 +238,7 @@ impl Element for MidedgeBend {
                 }
             }
         }
-        for c in 0..dofs {
-            for r in 0..c {
-                let s = 0.5 * (out.hess[c][r] + out.hess[r][c]);
-                out.hess[c][r] = s;
-                out.hess[r][c] = s;
-            }
-        }
+        out.symmetrize();
     }
 }
 

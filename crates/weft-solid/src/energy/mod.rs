@@ -46,6 +46,17 @@ impl Default for Local {
 }
 
 impl Local {
+    /// Makes the used Hessian block exactly symmetric (the mean of the two triangles).
+    pub(crate) fn symmetrize(&mut self) {
+        for c in 0..self.dofs {
+            for r in 0..c {
+                let s = 0.5 * (self.hess[c][r] + self.hess[r][c]);
+                self.hess[c][r] = s;
+                self.hess[r][c] = s;
+            }
+        }
+    }
+
     pub(crate) fn set<const D: usize>(
         &mut self,
         e: f64,

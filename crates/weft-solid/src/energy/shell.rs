@@ -344,13 +344,7 @@ impl Element for ShellBend {
                     out.hess[c][r] += self.k * d * gd[r].eps;
                 }
             }
-            for c in 0..dofs {
-                for r in 0..c {
-                    let s = 0.5 * (out.hess[c][r] + out.hess[r][c]);
-                    out.hess[c][r] = s;
-                    out.hess[r][c] = s;
-                }
-            }
+            out.symmetrize();
         }
     }
 }
