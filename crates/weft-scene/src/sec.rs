@@ -166,6 +166,45 @@ impl Default for Density {
 }
 sec_impl!(Density, "density");
 
+/// Drag: how hair or cloth exchanges momentum with a surrounding fluid (the seed's anisotropic
+/// drag, Fei et al. 2018). Coefficients C_l = 1/k_l + ξ_N·1.75/√(150 k_l)·(1 − γ)^(−3/2)·Re^c
+/// with 1/k_l = ξ_D ξ_l / 10⁴; force −(μV/D²) R C Rᵀ Δv; lift ξ_L.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Drag {
+    /// Global drag scale ξ_D (default 1).
+    pub xi_d: f64,
+    /// Normal drag scale ξ⊥ (default 1).
+    pub xi_perp: f64,
+    /// Tangential drag scale ξ∥ (default 0.5).
+    pub xi_par: f64,
+    /// Nonlinear (inertial) term scale ξ_N (default 0: linear drag).
+    pub xi_n: f64,
+    /// Lift scale ξ_L (default 0).
+    pub xi_l: f64,
+    /// Fibre diameter D [m] (default 1e-4).
+    pub diameter: f64,
+    /// Material fraction γ in [0, 1) (default 0.1).
+    pub gamma: f64,
+    /// Drag degree c, the exponent of the Reynolds number (default 1).
+    pub degree: f64,
+}
+
+impl Default for Drag {
+    fn default() -> Self {
+        Drag {
+            xi_d: 1.0,
+            xi_perp: 1.0,
+            xi_par: 0.5,
+            xi_n: 0.0,
+            xi_l: 0.0,
+            diameter: 1e-4,
+            gamma: 0.1,
+            degree: 1.0,
+        }
+    }
+}
+sec_impl!(Drag, "drag");
+
 /// How attached vertices follow their target.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum AttachmentMode {

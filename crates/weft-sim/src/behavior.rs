@@ -427,3 +427,80 @@ impl Behavior for AttachmentBehavior {
         Ok(())
     }
 }
+
+/// Fluid drag: every hair segment (cross-section from its Rod SEC's radius) and cloth triangle
+/// (thickness from its Discrete Shell SEC) becomes a drag element with its Drag SEC's law, or
+/// the documented defaults. The elements reach the coupled stepper through
+/// [`crate::Compiled::drag_elements`]; a scene without a fluid simply never uses them.
+#[derive(Clone, Debug, Default)]
+pub struct FluidDrag;
+
+impl Behavior for FluidDrag {
+    fn name(&self) -> &'static str {
+        "fluid_drag"
+    }
+    fn reads(&self) -> &'static [&'static str] {
+        &["drag", "rod", "discrete_shell"]
+    }
+    fn apply(&self, scene: &[SceneElement], b: &mut SystemBuilder) -> Result<(), SimError> {
+        for (ei, e) in scene.iter().enumerate() {
+            let Some(off) = b.offset(ei) else { continue };
+            let sec = match e.kind {
+                ElementKind::Cloth | ElementKind::Hair => {
+                    b.read(ei, "drag");
+                    e.secs
+                        .get::<weft_scene::Drag>()
+                        .cloned()
+                        .unwrap_or_default()
+                }
+                _ => continue,
+            };
+            let params = weft_fluid::DragParams {
+                xi_d: sec.xi_d,
+                xi_perp: sec.xi_perp,
+                xi_par: sec.xi_par,
+                xi_n: sec.xi_n,
+                xi_l: sec.xi_l,
+                diameter: sec.diameter,
+                gamma: sec.gamma,
+                degree: sec.degree,
+            };
+            params.validate().map_err(|err| match err {
+                weft_fluid::FluidError::Parameter { name, message } => bad(&e.name, name, message),
+                other => bad(&e.name, "drag", other.to_string()),
+            })?;
+            match (&*e.geometry, e.kind) {
+                (Geometry::Curves(c), ElementKind::Hair) => {
+                    b.read(ei, "rod");
+                    let r = e.secs.get::<Rod>().cloned().unwrap_or_default().radius;
+                    let area = std::f64::consts::PI * r * r;
+                    for w in c.offsets.windows(2) {
+                        for v in w[0]..w[1].saturating_sub(1) {
+                            b.drag_elements.push(crate::DragElement {
+                                shape: crate::DragShape::Segment([v + off, v + 1 + off], area),
+                                params,
+                            });
+                        }
+                    }
+                }
+                (Geometry::Mesh(m), ElementKind::Cloth) => {
+                    b.read(ei, "discrete_shell");
+                    let t = e
+                        .secs
+                        .get::<DiscreteShell>()
+                        .cloned()
+                        .unwrap_or_default()
+                        .thickness;
+                    for tri in &m.triangles {
+                        b.drag_elements.push(crate::DragElement {
+                            shape: crate::DragShape::Triangle(tri.map(|v| v + off), t),
+                            params,
+                        });
+                    }
+                }
+                _ => {}
+            }
+        }
+        Ok(())
+    }
+}

@@ -31,6 +31,8 @@ pub struct SystemBuilder {
     pins: Vec<Pin>,
     warnings: Vec<String>,
     read: Vec<BTreeSet<&'static str>>,
+    /// Elements that exchange momentum with a fluid (filled by [`crate::FluidDrag`]).
+    pub drag_elements: Vec<crate::DragElement>,
 }
 
 impl SystemBuilder {
@@ -96,6 +98,8 @@ pub struct Compiled {
     pub warnings: Vec<String>,
     /// Terms in the system, by kind: what the scene asked for and nothing else.
     pub terms: BTreeMap<&'static str, usize>,
+    /// Elements that exchange momentum with a fluid (empty when no Behavior asked for drag).
+    pub drag_elements: Vec<crate::DragElement>,
 }
 
 /// Compiles a scene: every cloth and hair element gets a range of global vertices; each
@@ -142,6 +146,7 @@ pub fn compile(scene: &[SceneElement], tree: &BehaviorTree) -> Result<Compiled, 
         pins: Vec::new(),
         warnings: Vec::new(),
         read: vec![BTreeSet::new(); scene.len()],
+        drag_elements: Vec::new(),
     };
     for (k, beh) in tree.behaviors.iter().enumerate() {
         if tree.behaviors[..k].iter().any(|o| o.name() == beh.name()) {
@@ -208,6 +213,7 @@ pub fn compile(scene: &[SceneElement], tree: &BehaviorTree) -> Result<Compiled, 
         ("rod_stretches", el.stretches.len()),
         ("rod_bends", el.bends.len()),
         ("springs", el.springs.len()),
+        ("drag_elements", b.drag_elements.len()),
         ("pinned", b.system.pinned.iter().filter(|p| **p).count()),
         ("vertices", n),
     ]);
@@ -218,5 +224,6 @@ pub fn compile(scene: &[SceneElement], tree: &BehaviorTree) -> Result<Compiled, 
         pins: b.pins,
         warnings: b.warnings,
         terms,
+        drag_elements: b.drag_elements,
     })
 }

@@ -18,7 +18,7 @@ mod error;
 mod stepper;
 
 pub use behavior::{
-    AttachmentBehavior, Behavior, BehaviorTree, Damping, DiscreteShellMaterial, Gravity,
+    AttachmentBehavior, Behavior, BehaviorTree, Damping, DiscreteShellMaterial, FluidDrag, Gravity,
     RodMaterial,
 };
 pub use build::{Compiled, Pin, SystemBuilder, compile};

@@ -222,3 +222,56 @@ fn a_settling_porous_sheet_reaches_the_darcy_terminal_velocity() {
     assert!((u1 / want - 1.0).abs() < 0.03, "{u1} vs {want}");
     assert!((u2 / u1 - 1.0).abs() < 0.02, "{u1} vs {u2}");
 }
+
+/// Scene side: the Fluid Drag Behavior turns every hair segment and cloth triangle into a
+/// drag element with its Drag SEC (or the defaults), names bad drag parameters, and a Drag
+/// SEC without the Behavior is reported as unread.
+#[test]
+fn fluid_drag_behavior_builds_elements_from_secs() {
+    use std::sync::Arc;
+    use weft_scene::procedural::{Plane, grid, strands_on_sphere};
+    use weft_scene::{Drag, ElementKind, Geometry, SceneElement};
+    let curves = strands_on_sphere([0.0, 1.0, 0.0], 0.1, 5, 4, 0.2, 60.0);
+    let strands = curves.len();
+    let mut hair = SceneElement::new("hair", ElementKind::Hair, Geometry::Curves(curves));
+    hair.secs.insert(Drag {
+        xi_d: 3.0,
+        ..Default::default()
+    });
+    let cloth = SceneElement::new(
+        "cloth",
+        ElementKind::Cloth,
+        Geometry::Mesh(grid([1.0, 1.0], [3, 3], Plane::Xz, [0.0; 3])),
+    );
+    let tree = |with_drag: bool| {
+        let mut behaviors: Vec<Arc<dyn Behavior>> =
+            vec![Arc::new(RodMaterial), Arc::new(DiscreteShellMaterial)];
+        if with_drag {
+            behaviors.push(Arc::new(FluidDrag));
+        }
+        BehaviorTree { behaviors }
+    };
+    let c = compile(&[hair.clone(), cloth.clone()], &tree(true)).unwrap();
+    assert_eq!(c.drag_elements.len(), strands * 4 + 8);
+    assert_eq!(c.terms["drag_elements"], strands * 4 + 8);
+    assert_eq!(c.drag_elements[0].params.xi_d, 3.0);
+    assert_eq!(
+        c.drag_elements.last().unwrap().params.xi_d,
+        1.0,
+        "cloth: defaults"
+    );
+    assert!(c.warnings.is_empty(), "{:?}", c.warnings);
+    let c = compile(&[hair.clone(), cloth.clone()], &tree(false)).unwrap();
+    assert!(c.drag_elements.is_empty());
+    assert!(
+        c.warnings.iter().any(|w| w.contains("'drag'")),
+        "{:?}",
+        c.warnings
+    );
+    hair.secs.insert(Drag {
+        gamma: 1.5,
+        ..Default::default()
+    });
+    let e = compile(&[hair, cloth], &tree(true)).unwrap_err();
+    assert!(e.to_string().contains("drag.gamma"), "{e}");
+}
