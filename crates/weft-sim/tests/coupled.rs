@@ -202,7 +202,8 @@ fn settle_sheet(thickness: f64) -> (f64, f64) {
         v = -state.v.iter().map(|v| v.y).sum::<f64>() / state.v.len() as f64;
     }
     // k = (μ/D²)·C⊥, C⊥ = ξ_D ξ⊥ / 10⁴ (linear branch).
-    let k = 1.002e-3 / 1e-8 * (1e4 * 1.0 / 1e4);
+    let c_perp = params.xi_d * params.xi_perp / 1e4;
+    let k = 1.002e-3 / (params.diameter * params.diameter) * c_perp;
     let terminal = (rho_s - 998.2) * 9.81 / k;
     (v, terminal)
 }
