@@ -41,8 +41,43 @@ pub struct RasterStats {
     pub samples: usize,
 }
 
+/// The sample lattice along a segment of length `len`: the midpoints of n = ⌈2 len/dx⌉
+/// equal parts (spacing at most dx/2), as interpolation weights of its two ends. Returns n
+/// (each sample carries 1/n of the segment) and the weights.
+pub fn segment_lattice(len: f64, dx: f64) -> (usize, impl Iterator<Item = [f64; 2]>) {
+    let n = ((2.0 * len / dx).ceil() as usize).max(1);
+    let weights = (0..n).map(move |s| {
+        let t = (s as f64 + 0.5) / n as f64;
+        [1.0 - t, t]
+    });
+    (n, weights)
+}
+
+/// The sample lattice over a triangle whose longest edge is `longest`: the centroids of its
+/// n² equal sub-triangles, n = ⌈2 longest/dx⌉ (spacing at most dx/2 along every edge), as
+/// barycentric weights. Returns the sample count n² (each carries 1/n² of the triangle) and
+/// the weights.
+pub fn triangle_lattice(longest: f64, dx: f64) -> (usize, impl Iterator<Item = [f64; 3]>) {
+    let n = ((2.0 * longest / dx).ceil() as usize).max(1);
+    let nf = n as f64;
+    let weights = (0..n).flat_map(move |i| {
+        (0..n - i).flat_map(move |j| {
+            // The upward sub-triangle (i, j), and the downward one beside it when it exists.
+            let up = Some([(i as f64 + 1.0 / 3.0) / nf, (j as f64 + 1.0 / 3.0) / nf]);
+            let down =
+                (i + j + 1 < n).then(|| [(i as f64 + 2.0 / 3.0) / nf, (j as f64 + 2.0 / 3.0) / nf]);
+            up.into_iter().chain(down).map(|[s, t]| [1.0 - s - t, s, t])
+        })
+    });
+    (n * n, weights)
+}
+
+fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
+    ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2) + (b[2] - a[2]).powi(2)).sqrt()
+}
+
 /// Samples along a rod segment between `ends` (each a position and a velocity) of
-/// cross-section `area` [m²], with drag tensor diagonal `drag`: spacing at most `dx/2`.
+/// cross-section `area` [m²], with drag tensor diagonal `drag` ([`segment_lattice`]).
 pub fn sample_segment(
     ends: [([f64; 3], [f64; 3]); 2],
     area: f64,
@@ -51,21 +86,20 @@ pub fn sample_segment(
     out: &mut Vec<Sample>,
 ) {
     let [(a, va), (b, vb)] = ends;
-    let len = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2) + (b[2] - a[2]).powi(2)).sqrt();
-    let n = ((2.0 * len / dx).ceil() as usize).max(1);
-    for s in 0..n {
-        let t = (s as f64 + 0.5) / n as f64;
+    let len = dist(a, b);
+    let (n, lattice) = segment_lattice(len, dx);
+    for [wa, wb] in lattice {
         out.push(Sample {
-            position: [0, 1, 2].map(|i| a[i] + t * (b[i] - a[i])),
-            velocity: [0, 1, 2].map(|i| va[i] + t * (vb[i] - va[i])),
+            position: [0, 1, 2].map(|i| wa * a[i] + wb * b[i]),
+            velocity: [0, 1, 2].map(|i| wa * va[i] + wb * vb[i]),
             volume: area * len / n as f64,
             drag,
         });
     }
 }
 
-/// Samples over a triangle (vertices `p`, velocities `v`) of thickness `thickness` [m]: a
-/// barycentric lattice with spacing at most `dx/2` along every edge.
+/// Samples over a triangle (vertices `p`, velocities `v`) of thickness `thickness` [m]
+/// ([`triangle_lattice`]).
 pub fn sample_triangle(
     p: [[f64; 3]; 3],
     v: [[f64; 3]; 3],
@@ -74,11 +108,7 @@ pub fn sample_triangle(
     dx: f64,
     out: &mut Vec<Sample>,
 ) {
-    let d = |a: [f64; 3], b: [f64; 3]| {
-        ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2) + (b[2] - a[2]).powi(2)).sqrt()
-    };
-    let longest = d(p[0], p[1]).max(d(p[1], p[2])).max(d(p[2], p[0]));
-    let n = ((2.0 * longest / dx).ceil() as usize).max(1);
+    let longest = dist(p[0], p[1]).max(dist(p[1], p[2])).max(dist(p[2], p[0]));
     let e1 = [0, 1, 2].map(|i| p[1][i] - p[0][i]);
     let e2 = [0, 1, 2].map(|i| p[2][i] - p[0][i]);
     let cr = [
@@ -87,26 +117,14 @@ pub fn sample_triangle(
         e1[0] * e2[1] - e1[1] * e2[0],
     ];
     let area = 0.5 * (cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]).sqrt();
-    // n² sub-triangles of equal area; one sample at each one's centroid.
-    let vol = area * thickness / (n * n) as f64;
-    let nf = n as f64;
-    for i in 0..n {
-        for j in 0..n - i {
-            // Upward sub-triangle (i, j), and the downward one beside it when it exists.
-            let mut cents = vec![((i as f64 + 1.0 / 3.0) / nf, (j as f64 + 1.0 / 3.0) / nf)];
-            if i + j + 1 < n {
-                cents.push(((i as f64 + 2.0 / 3.0) / nf, (j as f64 + 2.0 / 3.0) / nf));
-            }
-            for (s, t) in cents {
-                let w = [1.0 - s - t, s, t];
-                out.push(Sample {
-                    position: [0, 1, 2].map(|c| w[0] * p[0][c] + w[1] * p[1][c] + w[2] * p[2][c]),
-                    velocity: [0, 1, 2].map(|c| w[0] * v[0][c] + w[1] * v[1][c] + w[2] * v[2][c]),
-                    volume: vol,
-                    drag,
-                });
-            }
-        }
+    let (count, lattice) = triangle_lattice(longest, dx);
+    for w in lattice {
+        out.push(Sample {
+            position: [0, 1, 2].map(|c| w[0] * p[0][c] + w[1] * p[1][c] + w[2] * p[2][c]),
+            velocity: [0, 1, 2].map(|c| w[0] * v[0][c] + w[1] * v[1][c] + w[2] * v[2][c]),
+            volume: area * thickness / count as f64,
+            drag,
+        });
     }
 }
 

@@ -18,10 +18,10 @@
 //! converged, so total momentum is conserved to the coupling tolerance. That is why only the
 //! drag tensor's diagonal is used on both sides: the grid holds one coefficient per face.
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Vector3;
 use std::time::Instant;
 use weft_fluid::advect::advect_velocity;
-use weft_fluid::raster::{Sample, rasterize};
+use weft_fluid::raster::{Sample, rasterize, segment_lattice, triangle_lattice};
 use weft_fluid::{DragParams, FluidProperties, MacGrid, PressureSolve, Projection};
 use weft_solid::{Integrator, Settings, SolidSystem, State, StepError, VertexDrag};
 
@@ -177,19 +177,19 @@ impl CoupledStepper {
         })
     }
 
-    /// Samples every element at positions `x`: points at most half a cell apart.
+    /// Samples every element at positions `x` on the lattices rasterization uses
+    /// ([`segment_lattice`], [`triangle_lattice`]), keeping each sample's vertex weights.
     fn sample_points(&mut self, elements: &[DragElement], x: &[Vector3<f64>], dx: f64) {
         self.points.clear();
         for (ei, e) in elements.iter().enumerate() {
             match e.shape {
                 DragShape::Segment([a, b], area) => {
                     let len = (x[b as usize] - x[a as usize]).norm();
-                    let n = ((2.0 * len / dx).ceil() as usize).max(1);
-                    for s in 0..n {
-                        let t = (s as f64 + 0.5) / n as f64;
+                    let (n, lattice) = segment_lattice(len, dx);
+                    for [wa, wb] in lattice {
                         self.points.push(Point {
                             verts: [a, b, b],
-                            weights: [1.0 - t, t, 0.0],
+                            weights: [wa, wb, 0.0],
                             volume: area * len / n as f64,
                             element: ei as u32,
                         });
@@ -199,28 +199,14 @@ impl CoupledStepper {
                     let (pa, pb, pc) = (x[a as usize], x[b as usize], x[c as usize]);
                     let area = 0.5 * (pb - pa).cross(&(pc - pa)).norm();
                     let longest = (pb - pa).norm().max((pc - pb).norm()).max((pa - pc).norm());
-                    let n = ((2.0 * longest / dx).ceil() as usize).max(1);
-                    let vol = area * thickness / (n * n) as f64;
-                    let nf = n as f64;
-                    for i in 0..n {
-                        for j in 0..n - i {
-                            let mut cents =
-                                vec![((i as f64 + 1.0 / 3.0) / nf, (j as f64 + 1.0 / 3.0) / nf)];
-                            if i + j + 1 < n {
-                                cents.push((
-                                    (i as f64 + 2.0 / 3.0) / nf,
-                                    (j as f64 + 2.0 / 3.0) / nf,
-                                ));
-                            }
-                            for (s, t) in cents {
-                                self.points.push(Point {
-                                    verts: [a, b, c],
-                                    weights: [1.0 - s - t, s, t],
-                                    volume: vol,
-                                    element: ei as u32,
-                                });
-                            }
-                        }
+                    let (count, lattice) = triangle_lattice(longest, dx);
+                    for weights in lattice {
+                        self.points.push(Point {
+                            verts: [a, b, c],
+                            weights,
+                            volume: area * thickness / count as f64,
+                            element: ei as u32,
+                        });
                     }
                 }
             }
@@ -295,9 +281,12 @@ impl CoupledStepper {
                 &fluid
             };
             pressure_gradient(seen, grad);
-            let mut drag_m = vec![Matrix3::<f64>::zeros(); n];
-            let mut drag_mu = vec![Vector3::<f64>::zeros(); n];
-            let mut force = vec![Vector3::<f64>::zeros(); n];
+            // Accumulated in place: D in `drag.matrix`, D·u in `drag.flow` (divided below),
+            // the pressure force in `forces` (no allocation after the first step).
+            sys.drag.clear();
+            sys.drag.resize(n, VertexDrag::default());
+            sys.forces.clear();
+            sys.forces.resize(n, Vector3::zeros());
             let vk = if it == 0 { &state.v } else { &solid.v };
             self.samples.clear();
             for pt in &self.points {
@@ -318,10 +307,12 @@ impl CoupledStepper {
                         continue;
                     }
                     for a in 0..3 {
-                        drag_m[vi][(a, a)] += w * pt.volume * k[a];
-                        drag_mu[vi][a] += w * pt.volume * k[a] * u[a];
+                        sys.drag[vi].matrix[(a, a)] += w * pt.volume * k[a];
+                        sys.drag[vi].flow[a] += w * pt.volume * k[a] * u[a];
                     }
-                    force[vi] -= w * pt.volume * gp;
+                    if settings.method != Coupling::OneWay {
+                        sys.forces[vi] -= w * pt.volume * gp;
+                    }
                 }
                 self.samples.push(Sample {
                     position: p,
@@ -330,24 +321,12 @@ impl CoupledStepper {
                     drag: k,
                 });
             }
-            sys.drag = (0..n)
-                .map(|i| {
-                    let m = drag_m[i];
-                    let flow = Vector3::from_fn(|a, _| {
-                        if m[(a, a)] > 0.0 {
-                            drag_mu[i][a] / m[(a, a)]
-                        } else {
-                            0.0
-                        }
-                    });
-                    VertexDrag { matrix: m, flow }
-                })
-                .collect();
-            sys.forces = if settings.method == Coupling::OneWay {
-                vec![Vector3::zeros(); n]
-            } else {
-                force
-            };
+            for d in &mut sys.drag {
+                for a in 0..3 {
+                    let m = d.matrix[(a, a)];
+                    d.flow[a] = if m > 0.0 { d.flow[a] / m } else { 0.0 };
+                }
+            }
             stats.seconds[1] += t.elapsed().as_secs_f64();
             // C: implicit solid solve from the step's start.
             let t = Instant::now();
