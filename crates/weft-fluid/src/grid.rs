@@ -281,6 +281,19 @@ impl MacGrid {
         }
     }
 
+    /// Makes `self` a copy of `other`, reusing `self`'s buffers (no allocation when the
+    /// domains have the same size).
+    pub fn copy_from(&mut self, other: &MacGrid) {
+        self.domain.clone_from(&other.domain);
+        for a in 0..3 {
+            self.vel[a].clone_from(&other.vel[a]);
+            self.alpha[a].clone_from(&other.alpha[a]);
+            self.drag[a].clone_from(&other.drag[a]);
+            self.solid_vel[a].clone_from(&other.solid_vel[a]);
+        }
+        self.pressure.clone_from(&other.pressure);
+    }
+
     /// Sets the velocity of every face from a field `f(position) → [u, v, w]`.
     pub fn set_velocity(&mut self, f: impl Fn([f64; 3]) -> [f64; 3]) {
         for a in 0..3 {

@@ -194,6 +194,35 @@ pub fn rasterize(grid: &mut MacGrid, samples: &[Sample], max_solid_fraction: f64
     stats
 }
 
+/// Adds an impulse `impulse` [N·s] at `position` to the fluid, spread over the faces with
+/// the weights of [`MacGrid::face_stencil`]: face f gains w·J/(ρ α_f Δx³), so the fluid's
+/// momentum Σ ρ α u Δx³ changes by exactly J (the reaction of an explicit force on a solid,
+/// such as lift). Returns false, changing nothing, when `position` is outside the domain.
+pub fn add_impulse(
+    grid: &mut MacGrid,
+    position: [f64; 3],
+    impulse: [f64; 3],
+    density: f64,
+) -> bool {
+    let size = grid.domain.size();
+    let inside = (0..3).all(|b| {
+        let x = position[b] - grid.domain.origin[b];
+        x >= 0.0 && x <= size[b]
+    });
+    if !inside {
+        return false;
+    }
+    let cell = grid.domain.dx.powi(3);
+    for a in 0..3 {
+        for (f, w) in grid.face_stencil(a, position) {
+            if w != 0.0 {
+                grid.vel[a][f] += w * impulse[a] / (density * grid.alpha[a][f] * cell);
+            }
+        }
+    }
+    true
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -19,6 +19,8 @@ pub enum ElementKind {
     Attachment,
     /// A kinematic object (shown, later collided with; never simulated).
     Collider,
+    /// The region a fluid fills (a data-less element carrying a Fluid Domain SEC).
+    FluidDomain,
 }
 
 impl ElementKind {
@@ -29,6 +31,7 @@ impl ElementKind {
             ElementKind::Hair => "hair",
             ElementKind::Attachment => "attachment",
             ElementKind::Collider => "collider",
+            ElementKind::FluidDomain => "fluid_domain",
         }
     }
 }

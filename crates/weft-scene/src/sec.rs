@@ -205,6 +205,83 @@ impl Default for Drag {
 }
 sec_impl!(Drag, "drag");
 
+/// What one side of a fluid domain does.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DomainSide {
+    /// A fixed wall: no flow through it.
+    Wall,
+    /// Flow leaving through the opposite side re-enters here (both sides of the axis).
+    Periodic,
+    /// The domain's `flow` velocity is prescribed here (a current or a wind).
+    Inflow,
+    /// Open to still fluid at zero gauge pressure.
+    Open,
+}
+
+/// Fluid Domain: the box a fluid fills, how finely it is resolved, and its sides. Carried by
+/// a data-less fluid-domain element; a scene without one has no fluid (and no grid).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FluidDomain {
+    /// Explicit bounds (minimum, maximum corner) [m]; `None`: the solids' bounds plus
+    /// `padding` (default `None`).
+    pub bounds: Option<([f64; 3], [f64; 3])>,
+    /// Margin around the solids for automatic bounds [m] (default 0.1).
+    pub padding: f64,
+    /// Cell size Δx [m] (default 0.02).
+    pub cell_size: f64,
+    /// Sides at the minimum of x, y, z (default walls).
+    pub lo: [DomainSide; 3],
+    /// Sides at the maximum of x, y, z (default walls).
+    pub hi: [DomainSide; 3],
+    /// The current or wind [m/s]: the velocity at inflow sides and the fluid's initial
+    /// velocity (default 0).
+    pub flow: [f64; 3],
+}
+
+impl Default for FluidDomain {
+    fn default() -> Self {
+        FluidDomain {
+            bounds: None,
+            padding: 0.1,
+            cell_size: 0.02,
+            lo: [DomainSide::Wall; 3],
+            hi: [DomainSide::Wall; 3],
+            flow: [0.0; 3],
+        }
+    }
+}
+sec_impl!(FluidDomain, "fluid_domain");
+
+/// Fluid: the material filling a fluid domain (SI units). Presets: [`Fluid::WATER`] (the
+/// default) and [`Fluid::AIR`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Fluid {
+    /// Density ρ [kg/m³].
+    pub density: f64,
+    /// Dynamic viscosity μ [Pa·s].
+    pub viscosity: f64,
+}
+
+impl Fluid {
+    /// Water at 20 °C.
+    pub const WATER: Fluid = Fluid {
+        density: 998.2,
+        viscosity: 1.002e-3,
+    };
+    /// Air at 20 °C, sea level.
+    pub const AIR: Fluid = Fluid {
+        density: 1.204,
+        viscosity: 1.81e-5,
+    };
+}
+
+impl Default for Fluid {
+    fn default() -> Self {
+        Fluid::WATER
+    }
+}
+sec_impl!(Fluid, "fluid");
+
 /// How attached vertices follow their target.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum AttachmentMode {

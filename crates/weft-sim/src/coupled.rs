@@ -21,9 +21,13 @@
 use nalgebra::Vector3;
 use std::time::Instant;
 use weft_fluid::advect::advect_velocity;
-use weft_fluid::raster::{Sample, rasterize, segment_lattice, triangle_lattice};
-use weft_fluid::{DragParams, FluidProperties, MacGrid, PressureSolve, Projection};
-use weft_solid::{Integrator, Settings, SolidSystem, State, StepError, VertexDrag};
+use weft_fluid::raster::{
+    RasterStats, Sample, add_impulse, rasterize, segment_lattice, triangle_lattice,
+};
+use weft_fluid::{
+    DragParams, FluidProperties, MacGrid, PressureSolve, PressureStats, Projection, lift_force,
+};
+use weft_solid::{Integrator, Settings, SolidSystem, State, StepError, StepStats, VertexDrag};
 
 /// The solid part a drag element covers.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -143,8 +147,8 @@ pub enum CoupledError {
     Parameters(#[from] weft_fluid::FluidError),
 }
 
-/// A sample of a drag element: where it is, which vertices it interpolates, its volume and
-/// the drag diagonal per unit volume.
+/// A sample of a drag element: which vertices it interpolates, with what weights, its
+/// volume, and its element.
 #[derive(Clone, Copy, Debug)]
 struct Point {
     verts: [u32; 3],
@@ -153,14 +157,92 @@ struct Point {
     element: u32,
 }
 
-/// The coupled stepper's reusable parts.
+/// What solids and fluid exchange in one coupling iteration, gathered at the solid and fluid
+/// iterates: the samples (with their drag diagonals, to be rasterized), the linear drag
+/// −D(v − u) per vertex, and the explicit fluid forces per vertex (pressure −V∇p and lift).
+#[derive(Clone, Debug, Default)]
+pub struct Exchange {
+    points: Vec<Point>,
+    /// One per sample; velocities are filled when rasterizing.
+    pub samples: Vec<Sample>,
+    /// Linear drag per vertex (D in `matrix`, the flow velocity in `flow`).
+    pub drag: Vec<VertexDrag>,
+    /// Explicit force per vertex [N]: pressure (buoyancy) and lift.
+    pub forces: Vec<Vector3<f64>>,
+    /// Lift on each sample [N]; the fluid takes the reaction.
+    lift: Vec<[f64; 3]>,
+    /// Samples outside the fluid domain (they feel the nearest fluid and give nothing back).
+    pub outside: usize,
+}
+
+/// Memory of Aitken's Δ² relaxation across the iterations of one step.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Relaxation {
+    /// The current relaxation factor ω.
+    pub omega: f64,
+    residual: Option<Vec<Vector3<f64>>>,
+}
+
+impl Default for Relaxation {
+    fn default() -> Self {
+        Relaxation {
+            omega: 0.5,
+            residual: None,
+        }
+    }
+}
+
+/// Largest change of any velocity component between two vertex velocity lists [m/s].
+pub fn velocity_change(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> f64 {
+    a.iter()
+        .zip(b)
+        .fold(0.0f64, |m, (a, b)| m.max((a - b).amax()))
+}
+
+/// Largest change of any face velocity between two grids [m/s].
+pub fn fluid_change(a: &MacGrid, b: &MacGrid) -> f64 {
+    a.vel
+        .iter()
+        .zip(&b.vel)
+        .flat_map(|(a, b)| a.iter().zip(b))
+        .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()))
+}
+
+/// Aitken Δ² relaxation of a solid iterate (Irons & Tuck 1969; Küttler & Wall 2008). The
+/// plain fixed point diverges when the fluid around a light solid is heavier than it (the
+/// added-mass effect: the pressure's reply to the solid's motion is lagged), so the update
+/// from the `current` iterate to the solve's result `next` is scaled by ω, re-estimated from
+/// the last two residuals r = ṽ − v. Positions follow implicit Euler from `start`.
+pub fn relax(start: &State, current: &State, next: &mut State, h: f64, memory: &mut Relaxation) {
+    let r: Vec<Vector3<f64>> = next.v.iter().zip(&current.v).map(|(a, b)| a - b).collect();
+    if let Some(rp) = &memory.residual {
+        let (mut num, mut den) = (0.0, 0.0);
+        for (a, b) in r.iter().zip(rp) {
+            let d = a - b;
+            num += b.dot(&d);
+            den += d.dot(&d);
+        }
+        if den > 0.0 {
+            memory.omega = (-memory.omega * num / den).clamp(1e-4, 1.0);
+        }
+    }
+    for (i, ri) in r.iter().enumerate() {
+        next.v[i] = current.v[i] + memory.omega * ri;
+        next.x[i] = start.x[i] + h * next.v[i];
+    }
+    memory.residual = Some(r);
+}
+
+/// The coupled stepper's reusable parts: the solid integrator (its pattern and symbolic
+/// factorization), the pressure projection (its matrix pattern and preconditioner), and
+/// scratch buffers. The stages are public so that a graph can run them as separate nodes;
+/// [`CoupledStepper::step`] runs them in order.
 pub struct CoupledStepper {
     integrator: Integrator,
     projection: Projection,
     advect_scratch: Option<MacGrid>,
     /// The pressure gradient on the faces (sampled like a velocity).
     gradient: Option<MacGrid>,
-    points: Vec<Point>,
     samples: Vec<Sample>,
 }
 
@@ -172,55 +254,199 @@ impl CoupledStepper {
             projection: Projection::new(grid),
             advect_scratch: None,
             gradient: None,
-            points: Vec::new(),
             samples: Vec::new(),
         })
     }
 
-    /// Samples every element at positions `x` on the lattices rasterization uses
-    /// ([`segment_lattice`], [`triangle_lattice`]), keeping each sample's vertex weights.
-    fn sample_points(&mut self, elements: &[DragElement], x: &[Vector3<f64>], dx: f64) {
-        self.points.clear();
-        for (ei, e) in elements.iter().enumerate() {
-            match e.shape {
-                DragShape::Segment([a, b], area) => {
-                    let len = (x[b as usize] - x[a as usize]).norm();
-                    let (n, lattice) = segment_lattice(len, dx);
-                    for [wa, wb] in lattice {
-                        self.points.push(Point {
-                            verts: [a, b, b],
-                            weights: [wa, wb, 0.0],
-                            volume: area * len / n as f64,
-                            element: ei as u32,
-                        });
-                    }
+    /// **Predict** the fluid: `out` becomes `grid` advected over `h` with gravity added
+    /// (u*). For [`Coupling::OneWay`] it is then projected as if no solid were there, and is
+    /// the fluid the solids see. Returns the CG iterations spent.
+    pub fn predict(
+        &mut self,
+        grid: &MacGrid,
+        h: f64,
+        settings: &CoupledSettings,
+        out: &mut MacGrid,
+    ) -> Result<usize, CoupledError> {
+        out.copy_from(grid);
+        advect_velocity(out, h, &mut self.advect_scratch);
+        out.accelerate(settings.gravity, h);
+        if settings.method != Coupling::OneWay {
+            return Ok(0);
+        }
+        for a in 0..3 {
+            out.alpha[a].iter_mut().for_each(|x| *x = 1.0);
+            out.drag[a].iter_mut().for_each(|x| *x = 0.0);
+        }
+        let ps = self.project(out, h, settings, 0)?;
+        Ok(ps.iterations)
+    }
+
+    /// **Gather** (stages A/B): samples every drag element at positions `x` on the lattices
+    /// rasterization uses ([`segment_lattice`], [`triangle_lattice`]); per sample, the drag
+    /// diagonal at the relative speed against the fluid `seen`, its velocity, pressure
+    /// gradient and lift, all interpolated with the trilinear weights rasterization uses;
+    /// lumped to vertices as linear drag and explicit forces.
+    pub fn gather(
+        &mut self,
+        elements: &[DragElement],
+        x: &[Vector3<f64>],
+        v: &[Vector3<f64>],
+        seen: &MacGrid,
+        settings: &CoupledSettings,
+        out: &mut Exchange,
+    ) {
+        let dx = seen.domain.dx;
+        let mu = settings.fluid.viscosity;
+        sample_points(elements, x, dx, &mut out.points);
+        let grad = self
+            .gradient
+            .get_or_insert_with(|| MacGrid::new(seen.domain.clone()));
+        if grad.domain != seen.domain {
+            *grad = MacGrid::new(seen.domain.clone());
+        }
+        pressure_gradient(seen, grad);
+        let n = x.len();
+        // Accumulated in place: D in `drag.matrix`, D·u in `drag.flow` (divided below).
+        out.drag.clear();
+        out.drag.resize(n, VertexDrag::default());
+        out.forces.clear();
+        out.forces.resize(n, Vector3::zeros());
+        out.samples.clear();
+        out.lift.clear();
+        out.outside = 0;
+        let size = seen.domain.size();
+        for pt in &out.points {
+            let e = &elements[pt.element as usize];
+            let pos: Vector3<f64> = (0..3)
+                .map(|j| pt.weights[j] * x[pt.verts[j] as usize])
+                .sum();
+            let vel: Vector3<f64> = (0..3)
+                .map(|j| pt.weights[j] * v[pt.verts[j] as usize])
+                .sum();
+            let p = [pos.x, pos.y, pos.z];
+            if !(0..3).all(|b| (0.0..=size[b]).contains(&(p[b] - seen.domain.origin[b]))) {
+                out.outside += 1;
+            }
+            let u = Vector3::from(seen.velocity_at(p));
+            let gp = Vector3::from(grad.velocity_at(p));
+            let dv = vel - u;
+            let (k, axis) = drag_diagonal(e, x, &settings.fluid, mu, dv.norm());
+            let lift = if e.params.xi_l > 0.0 {
+                let f_drag = [0, 1, 2].map(|a| -pt.volume * k[a] * dv[a]);
+                lift_force(e.params.xi_l, axis.into(), f_drag, dv.into())
+            } else {
+                [0.0; 3]
+            };
+            let f = -pt.volume * gp + Vector3::from(lift);
+            for j in 0..3 {
+                let (w, vi) = (pt.weights[j], pt.verts[j] as usize);
+                if w == 0.0 {
+                    continue;
                 }
-                DragShape::Triangle([a, b, c], thickness) => {
-                    let (pa, pb, pc) = (x[a as usize], x[b as usize], x[c as usize]);
-                    let area = 0.5 * (pb - pa).cross(&(pc - pa)).norm();
-                    let longest = (pb - pa).norm().max((pc - pb).norm()).max((pa - pc).norm());
-                    let (count, lattice) = triangle_lattice(longest, dx);
-                    for weights in lattice {
-                        self.points.push(Point {
-                            verts: [a, b, c],
-                            weights,
-                            volume: area * thickness / count as f64,
-                            element: ei as u32,
-                        });
-                    }
+                for a in 0..3 {
+                    out.drag[vi].matrix[(a, a)] += w * pt.volume * k[a];
+                    out.drag[vi].flow[a] += w * pt.volume * k[a] * u[a];
                 }
+                out.forces[vi] += w * f;
+            }
+            out.samples.push(Sample {
+                position: p,
+                velocity: [0.0; 3], // filled when rasterizing
+                volume: pt.volume,
+                drag: k,
+            });
+            out.lift.push(lift);
+        }
+        for d in &mut out.drag {
+            for a in 0..3 {
+                let m = d.matrix[(a, a)];
+                d.flow[a] = if m > 0.0 { d.flow[a] / m } else { 0.0 };
             }
         }
     }
 
-    /// One coupled step of `h` seconds. `sys` is the solid system (its `drag` and `forces`
-    /// are overwritten with the fluid's); on error `state` and `grid` are unchanged.
+    /// **Solid solve** (stage C): one implicit step of `h` from `start` with the exchange's
+    /// drag and forces (written into `sys`), attached vertices at `targets`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn solve_solid(
+        &mut self,
+        sys: &mut SolidSystem,
+        exchange: &Exchange,
+        start: &State,
+        targets: Option<&[Vector3<f64>]>,
+        h: f64,
+        settings: &CoupledSettings,
+        iteration: usize,
+        out: &mut State,
+    ) -> Result<StepStats, CoupledError> {
+        sys.drag.clone_from(&exchange.drag);
+        sys.forces.clone_from(&exchange.forces);
+        out.x.clone_from(&start.x);
+        out.v.clone_from(&start.v);
+        self.integrator
+            .step(sys, out, targets, h, &settings.solid)
+            .map_err(|source| CoupledError::Solid { iteration, source })
+    }
+
+    /// **Rasterize** (stage D): `out` becomes the predicted fluid `u_star` with the
+    /// exchange's samples, moving with the solid velocities `v`, rasterized into solid
+    /// fractions, drag and solid velocities, and the lift's reaction added.
+    pub fn rasterize(
+        &mut self,
+        exchange: &Exchange,
+        v: &[Vector3<f64>],
+        u_star: &MacGrid,
+        h: f64,
+        settings: &CoupledSettings,
+        out: &mut MacGrid,
+    ) -> RasterStats {
+        out.copy_from(u_star);
+        self.samples.clone_from(&exchange.samples);
+        for (s, pt) in self.samples.iter_mut().zip(&exchange.points) {
+            let w: Vector3<f64> = (0..3)
+                .map(|j| pt.weights[j] * v[pt.verts[j] as usize])
+                .sum();
+            s.velocity = [w.x, w.y, w.z];
+        }
+        let stats = rasterize(out, &self.samples, settings.max_solid_fraction);
+        for (s, l) in self.samples.iter().zip(&exchange.lift) {
+            if l.iter().any(|c| *c != 0.0) {
+                add_impulse(out, s.position, l.map(|c| -c * h), settings.fluid.density);
+            }
+        }
+        stats
+    }
+
+    /// **Pressure solve** (stages E/F): projects `fluid` (u* with the solids rasterized)
+    /// onto the mixture's divergence-free fields; velocities and pressure are updated.
+    pub fn project(
+        &mut self,
+        fluid: &mut MacGrid,
+        h: f64,
+        settings: &CoupledSettings,
+        iteration: usize,
+    ) -> Result<PressureStats, CoupledError> {
+        if self.projection.unknowns() != fluid.domain.cell_count() {
+            self.projection = Projection::new(fluid);
+        }
+        self.projection
+            .project(fluid, settings.fluid.density, h, &settings.pressure)
+            .map_err(|source| CoupledError::Pressure { iteration, source })
+    }
+
+    /// One coupled step of `h` seconds: predict, then gather, solve, rasterize and project
+    /// until converged (or once). `sys` is the solid system (its `drag` and `forces` are
+    /// overwritten with the fluid's); `targets` are attached vertices' positions at the step's
+    /// end. On error `state` and `grid` are unchanged.
+    #[allow(clippy::too_many_arguments)]
     pub fn step(
         &mut self,
         sys: &mut SolidSystem,
         elements: &[DragElement],
         state: &mut State,
         grid: &mut MacGrid,
+        targets: Option<&[Vector3<f64>]>,
         h: f64,
         settings: &CoupledSettings,
     ) -> Result<CoupledStats, CoupledError> {
@@ -228,192 +454,71 @@ impl CoupledStepper {
             e.params.validate()?;
         }
         let mut stats = CoupledStats::default();
-        let n = state.x.len();
-        let dx = grid.domain.dx;
-        let rho = settings.fluid.density;
-        let mu = settings.fluid.viscosity;
-        // (1) Fluid predictor u*.
+        // (1) Fluid predictor u* (for one-way: the fluid, projected without solids).
         let t = Instant::now();
-        let mut fluid = grid.clone();
-        advect_velocity(&mut fluid, h, &mut self.advect_scratch);
-        fluid.accelerate(settings.gravity, h);
-        let u_star = fluid.vel.clone();
+        let mut u_star = MacGrid::new(grid.domain.clone());
+        stats.pressure_iterations += self.predict(grid, h, settings, &mut u_star)?;
         stats.seconds[0] += t.elapsed().as_secs_f64();
-        if settings.method == Coupling::OneWay {
-            // The fluid as if no solid were there; then the solids in it.
-            for a in 0..3 {
-                fluid.alpha[a].iter_mut().for_each(|x| *x = 1.0);
-                fluid.drag[a].iter_mut().for_each(|x| *x = 0.0);
-            }
-            let t = Instant::now();
-            let ps = self
-                .projection
-                .project(&mut fluid, rho, h, &settings.pressure)
-                .map_err(|source| CoupledError::Pressure {
-                    iteration: 0,
-                    source,
-                })?;
-            stats.pressure_iterations += ps.iterations;
-            stats.seconds[4] += t.elapsed().as_secs_f64();
-        }
+        let one_way = settings.method == Coupling::OneWay;
+        let mut exchange = Exchange::default();
+        let mut relaxation = Relaxation::default();
+        // The iterates: the first sees the fluid as the last step left it (divergence-free,
+        // with its pressure), not u*: u* still holds this step's gravity, which the pressure
+        // has yet to balance.
         let mut solid = state.clone();
-        let (mut v_prev, mut u_prev) = (state.v.clone(), fluid.vel.clone());
-        let mut omega = 0.5;
-        let mut r_prev: Option<Vec<Vector3<f64>>> = None;
+        let mut next = state.clone();
+        let mut fluid = if one_way {
+            u_star.clone()
+        } else {
+            grid.clone()
+        };
+        let mut projected = MacGrid::new(grid.domain.clone());
         let max_it = match settings.method {
             Coupling::Newton => settings.max_iterations.max(1),
             _ => 1,
         };
         for it in 0..max_it {
-            // A/B: drag and pressure forces from the fluid iterate, at the solid iterate.
             let t = Instant::now();
-            let xk = if it == 0 { &state.x } else { &solid.x };
-            self.sample_points(elements, xk, dx);
-            let grad = self
-                .gradient
-                .get_or_insert_with(|| MacGrid::new(fluid.domain.clone()));
-            // The first iteration sees the fluid as the last step left it (divergence-free,
-            // with its pressure); later ones the latest projection. Not u*: it still holds
-            // this step's gravity, which the pressure has yet to balance.
-            let seen = if it == 0 && settings.method != Coupling::OneWay {
-                &*grid
-            } else {
-                &fluid
-            };
-            pressure_gradient(seen, grad);
-            // Accumulated in place: D in `drag.matrix`, D·u in `drag.flow` (divided below),
-            // the pressure force in `forces` (no allocation after the first step).
-            sys.drag.clear();
-            sys.drag.resize(n, VertexDrag::default());
-            sys.forces.clear();
-            sys.forces.resize(n, Vector3::zeros());
-            let vk = if it == 0 { &state.v } else { &solid.v };
-            self.samples.clear();
-            for pt in &self.points {
-                let e = &elements[pt.element as usize];
-                let pos: Vector3<f64> = (0..3)
-                    .map(|j| pt.weights[j] * xk[pt.verts[j] as usize])
-                    .sum();
-                let vel: Vector3<f64> = (0..3)
-                    .map(|j| pt.weights[j] * vk[pt.verts[j] as usize])
-                    .sum();
-                let p = [pos.x, pos.y, pos.z];
-                let u = Vector3::from(seen.velocity_at(p));
-                let gp = Vector3::from(grad.velocity_at(p));
-                let k = drag_diagonal(e, xk, &settings.fluid, mu, (vel - u).norm());
-                for j in 0..3 {
-                    let (w, vi) = (pt.weights[j], pt.verts[j] as usize);
-                    if w == 0.0 {
-                        continue;
-                    }
-                    for a in 0..3 {
-                        sys.drag[vi].matrix[(a, a)] += w * pt.volume * k[a];
-                        sys.drag[vi].flow[a] += w * pt.volume * k[a] * u[a];
-                    }
-                    if settings.method != Coupling::OneWay {
-                        sys.forces[vi] -= w * pt.volume * gp;
-                    }
-                }
-                self.samples.push(Sample {
-                    position: p,
-                    velocity: [0.0; 3], // filled after the solid solve
-                    volume: pt.volume,
-                    drag: k,
-                });
-            }
-            for d in &mut sys.drag {
-                for a in 0..3 {
-                    let m = d.matrix[(a, a)];
-                    d.flow[a] = if m > 0.0 { d.flow[a] / m } else { 0.0 };
-                }
-            }
+            self.gather(
+                elements,
+                &solid.x,
+                &solid.v,
+                &fluid,
+                settings,
+                &mut exchange,
+            );
             stats.seconds[1] += t.elapsed().as_secs_f64();
-            // C: implicit solid solve from the step's start.
             let t = Instant::now();
-            let mut next = state.clone();
-            let ss = self
-                .integrator
-                .step(sys, &mut next, None, h, &settings.solid)
-                .map_err(|source| CoupledError::Solid {
-                    iteration: it,
-                    source,
-                })?;
+            let ss =
+                self.solve_solid(sys, &exchange, state, targets, h, settings, it, &mut next)?;
             stats.solid_iterations += ss.iterations;
             stats.seconds[2] += t.elapsed().as_secs_f64();
             stats.iterations = it + 1;
-            let dv = next
-                .v
-                .iter()
-                .zip(&v_prev)
-                .fold(0.0f64, |m, (a, b)| m.max((a - b).amax()));
             if settings.method == Coupling::Newton && it > 0 {
-                // Aitken Δ² relaxation of the solid velocity (Irons & Tuck 1969; Küttler &
-                // Wall 2008): the plain fixed point diverges when the fluid around a light
-                // solid is heavier than it (the added-mass effect: the pressure's reply to the
-                // solid's motion is lagged), so the update is scaled by ω, re-estimated from
-                // the last two residuals r = ṽ − v.
-                let r: Vec<Vector3<f64>> =
-                    next.v.iter().zip(&solid.v).map(|(a, b)| a - b).collect();
-                if let Some(rp) = &r_prev {
-                    let (mut num, mut den) = (0.0, 0.0);
-                    for (a, b) in r.iter().zip(rp) {
-                        let d = a - b;
-                        num += b.dot(&d);
-                        den += d.dot(&d);
-                    }
-                    if den > 0.0 {
-                        omega = (-omega * num / den).clamp(1e-4, 1.0);
-                    }
-                }
-                for (i, ri) in r.iter().enumerate() {
-                    next.v[i] = solid.v[i] + omega * ri;
-                    next.x[i] = state.x[i] + h * next.v[i];
-                }
-                r_prev = Some(r);
+                relax(state, &solid, &mut next, h, &mut relaxation);
             }
-            solid = next;
-            if settings.method == Coupling::OneWay {
+            let dv = velocity_change(&next.v, &solid.v);
+            std::mem::swap(&mut solid, &mut next);
+            if one_way {
                 stats.residuals.push([dv, 0.0]);
                 stats.converged = true;
                 break;
             }
-            // D: rasterize with the new solid velocities.
             let t = Instant::now();
-            for (s, pt) in self.samples.iter_mut().zip(&self.points) {
-                let v: Vector3<f64> = (0..3)
-                    .map(|j| pt.weights[j] * solid.v[pt.verts[j] as usize])
-                    .sum();
-                s.velocity = [v.x, v.y, v.z];
-            }
-            rasterize(&mut fluid, &self.samples, settings.max_solid_fraction);
+            self.rasterize(&exchange, &solid.v, &u_star, h, settings, &mut projected);
             stats.seconds[3] += t.elapsed().as_secs_f64();
-            // E/F: pressure solve from u* with the solid prescribed.
             let t = Instant::now();
-            fluid.vel.clone_from(&u_star);
-            let ps = self
-                .projection
-                .project(&mut fluid, rho, h, &settings.pressure)
-                .map_err(|source| CoupledError::Pressure {
-                    iteration: it,
-                    source,
-                })?;
+            let ps = self.project(&mut projected, h, settings, it)?;
             stats.pressure_iterations += ps.iterations;
             stats.seconds[4] += t.elapsed().as_secs_f64();
-            let du = fluid
-                .vel
-                .iter()
-                .zip(&u_prev)
-                .flat_map(|(a, b)| a.iter().zip(b))
-                .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            let du = fluid_change(&projected, &fluid);
+            std::mem::swap(&mut fluid, &mut projected);
             stats.residuals.push([dv, du]);
-            // G: convergence.
             if settings.method == Coupling::Staggered || (it > 0 && dv.max(du) < settings.tolerance)
             {
                 stats.converged = true;
                 break;
             }
-            v_prev.clone_from(&solid.v);
-            u_prev.clone_from(&fluid.vel);
         }
         if !stats.converged {
             let last = stats.residuals.last().copied().unwrap_or([f64::NAN; 2]);
@@ -429,6 +534,42 @@ impl CoupledStepper {
     }
 }
 
+/// Samples every element at positions `x` on the lattices rasterization uses, keeping each
+/// sample's vertex weights.
+fn sample_points(elements: &[DragElement], x: &[Vector3<f64>], dx: f64, out: &mut Vec<Point>) {
+    out.clear();
+    for (ei, e) in elements.iter().enumerate() {
+        match e.shape {
+            DragShape::Segment([a, b], area) => {
+                let len = (x[b as usize] - x[a as usize]).norm();
+                let (n, lattice) = segment_lattice(len, dx);
+                for [wa, wb] in lattice {
+                    out.push(Point {
+                        verts: [a, b, b],
+                        weights: [wa, wb, 0.0],
+                        volume: area * len / n as f64,
+                        element: ei as u32,
+                    });
+                }
+            }
+            DragShape::Triangle([a, b, c], thickness) => {
+                let (pa, pb, pc) = (x[a as usize], x[b as usize], x[c as usize]);
+                let area = 0.5 * (pb - pa).cross(&(pc - pa)).norm();
+                let longest = (pb - pa).norm().max((pc - pb).norm()).max((pa - pc).norm());
+                let (count, lattice) = triangle_lattice(longest, dx);
+                for weights in lattice {
+                    out.push(Point {
+                        verts: [a, b, c],
+                        weights,
+                        volume: area * thickness / count as f64,
+                        element: ei as u32,
+                    });
+                }
+            }
+        }
+    }
+}
+
 /// The drag tensor's diagonal per unit solid volume, k = (μ/D²) R C Rᵀ, for element `e` at
 /// relative speed `speed` (eq. 1–3 of the seed).
 fn drag_diagonal(
@@ -437,7 +578,7 @@ fn drag_diagonal(
     fluid: &FluidProperties,
     mu: f64,
     speed: f64,
-) -> [f64; 3] {
+) -> ([f64; 3], Vector3<f64>) {
     let p = &e.params;
     let (cp, _) = p.coefficient(fluid, p.inverse_permeability(p.xi_perp), speed);
     let (cq, _) = p.coefficient(fluid, p.inverse_permeability(p.xi_par), speed);
@@ -449,7 +590,9 @@ fn drag_diagonal(
         }
     };
     let s = mu / (p.diameter * p.diameter);
-    [0, 1, 2].map(|a| s * (c_axis * axis[a] * axis[a] + c_other * (1.0 - axis[a] * axis[a])))
+    let k =
+        [0, 1, 2].map(|a| s * (c_axis * axis[a] * axis[a] + c_other * (1.0 - axis[a] * axis[a])));
+    (k, axis)
 }
 
 /// Fills `out`'s face velocities with the pressure gradient (p_plus − p_minus)/Δx of `grid`
