@@ -213,10 +213,10 @@ pub fn add_impulse(
         return false;
     }
     let cell = grid.domain.dx.powi(3);
-    for a in 0..3 {
+    for (a, j) in impulse.iter().enumerate() {
         for (f, w) in grid.face_stencil(a, position) {
             if w != 0.0 {
-                grid.vel[a][f] += w * impulse[a] / (density * grid.alpha[a][f] * cell);
+                grid.vel[a][f] += w * j / (density * grid.alpha[a][f] * cell);
             }
         }
     }
