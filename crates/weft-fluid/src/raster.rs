@@ -324,4 +324,29 @@ mod tests {
                 .all(|&a| (0.1 - 1e-15..=1.0).contains(&a))
         );
     }
+
+    #[test]
+    fn an_impulse_changes_fluid_momentum_by_exactly_itself() {
+        // Over a rasterized (partly solid) grid: Σ ρ α Δu Δx³ = J per axis, to rounding.
+        let mut g = grid();
+        let mut s = Vec::new();
+        sample_segment(
+            [([0.2, 0.3, 0.4], [0.0; 3]), ([0.7, 0.5, 0.6], [0.0; 3])],
+            2e-4,
+            [1.0; 3],
+            0.1,
+            &mut s,
+        );
+        rasterize(&mut g, &s, 0.9);
+        let before = g.vel.clone();
+        let j = [3e-3, -2e-3, 1e-3];
+        assert!(add_impulse(&mut g, [0.43, 0.41, 0.52], j, 1000.0));
+        assert!(!add_impulse(&mut g, [1.5, 0.5, 0.5], j, 1000.0));
+        for a in 0..3 {
+            let p: f64 = (0..g.vel[a].len())
+                .map(|f| 1000.0 * g.alpha[a][f] * (g.vel[a][f] - before[a][f]) * 1e-3)
+                .sum();
+            assert!((p - j[a]).abs() < 1e-15, "axis {a}: {p} vs {}", j[a]);
+        }
+    }
 }

@@ -100,6 +100,70 @@ pub struct Compiled {
     pub terms: BTreeMap<&'static str, usize>,
     /// Elements that exchange momentum with a fluid (empty when no Behavior asked for drag).
     pub drag_elements: Vec<crate::DragElement>,
+    /// The scene's fluid (None without a fluid-domain element: no grid is made).
+    pub fluid: Option<crate::FluidSpec>,
+}
+
+fn lerp(a: Option<Transform>, b: Option<Transform>, s: f64) -> Option<Transform> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some(a.lerp_slerp(&b, s)),
+        (a, b) => b.or(a),
+    }
+}
+
+impl Compiled {
+    /// Checks that `scene` (at `frame`) has the structure the system was compiled from: the
+    /// same elements with the same vertex counts.
+    pub fn check_scene(&self, scene: &[SceneElement], frame: i64) -> Result<(), SimError> {
+        for (i, (e, r)) in scene.iter().zip(&self.ranges).enumerate() {
+            if let Some(r) = r
+                && e.vertex_count() != r.len()
+            {
+                return Err(SimError::SceneChanged(format!(
+                    "element {i} '{}' has {} vertices at frame {frame} but had {} at the start",
+                    e.name,
+                    e.vertex_count(),
+                    r.len()
+                )));
+            }
+        }
+        if scene.len() != self.ranges.len() {
+            return Err(SimError::SceneChanged(format!(
+                "the scene has {} elements at frame {frame} but had {} at the start",
+                scene.len(),
+                self.ranges.len()
+            )));
+        }
+        Ok(())
+    }
+
+    /// Where attached vertices go at fraction `s` of the way from the transforms `from` to
+    /// `to` (translation linearly, rotation by slerp): writes hard pins' targets into
+    /// `targets` (one per vertex) and moves spring attachments' targets in `system`.
+    pub fn set_targets(
+        &self,
+        from: &[Option<Transform>],
+        to: &[Option<Transform>],
+        s: f64,
+        system: &mut SolidSystem,
+        targets: &mut [Vector3<f64>],
+    ) {
+        for p in &self.pins {
+            let t = lerp(
+                from.get(p.attachment).copied().flatten(),
+                to.get(p.attachment).copied().flatten(),
+                s,
+            );
+            let x = match t {
+                Some(t) => t.transform_point(&p.local.into()).coords,
+                None => p.local,
+            };
+            targets[p.vertex] = x;
+            if let Some(k) = p.spring {
+                system.elements.springs[k].target = x;
+            }
+        }
+    }
 }
 
 /// Compiles a scene: every cloth and hair element gets a range of global vertices; each
@@ -194,6 +258,22 @@ pub fn compile(scene: &[SceneElement], tree: &BehaviorTree) -> Result<Compiled, 
             message,
         });
     }
+    let fluid = crate::fluid::fluid_spec(scene, &b.x, |e, sec| {
+        if let Some(r) = b.read.get_mut(e) {
+            r.insert(sec);
+        }
+    })?;
+    match (&fluid, b.drag_elements.is_empty()) {
+        (None, false) => b.warn(format!(
+            "the Fluid Drag Behavior made {} drag elements but the scene has no fluid domain: they feel no fluid",
+            b.drag_elements.len()
+        )),
+        (Some(f), true) => b.warn(format!(
+            "the scene has the fluid domain '{}' but no Behavior couples a solid to it (add behavior.fluid_drag)",
+            f.element
+        )),
+        _ => {}
+    }
     for (ei, e) in scene.iter().enumerate() {
         for t in e.secs.types() {
             if !b.read[ei].contains(t) {
@@ -225,5 +305,6 @@ pub fn compile(scene: &[SceneElement], tree: &BehaviorTree) -> Result<Compiled, 
         warnings: b.warnings,
         terms,
         drag_elements: b.drag_elements,
+        fluid,
     })
 }

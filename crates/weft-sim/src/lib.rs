@@ -15,6 +15,7 @@ mod behavior;
 mod build;
 mod coupled;
 mod error;
+mod fluid;
 mod stepper;
 
 pub use behavior::{
@@ -27,4 +28,5 @@ pub use coupled::{
     Exchange, Relaxation, fluid_change, relax, velocity_change,
 };
 pub use error::SimError;
+pub use fluid::FluidSpec;
 pub use stepper::{FrameStats, SimState, SolidStepper, StepperSettings};

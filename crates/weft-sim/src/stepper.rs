@@ -79,13 +79,6 @@ pub struct SolidStepper {
     targets: Vec<Vector3<f64>>,
 }
 
-fn lerp(a: Option<Transform>, b: Option<Transform>, s: f64) -> Option<Transform> {
-    match (a, b) {
-        (Some(a), Some(b)) => Some(a.lerp_slerp(&b, s)),
-        (a, b) => b.or(a),
-    }
-}
-
 impl SolidStepper {
     /// A stepper for `compiled`.
     pub fn new(compiled: Arc<Compiled>, settings: StepperSettings) -> Result<Self, SimError> {
@@ -120,21 +113,8 @@ impl SolidStepper {
     }
 
     fn set_targets(&mut self, from: &[Option<Transform>], to: &[Option<Transform>], s: f64) {
-        for p in &self.compiled.pins {
-            let t = lerp(
-                from.get(p.attachment).copied().flatten(),
-                to.get(p.attachment).copied().flatten(),
-                s,
-            );
-            let x = match t {
-                Some(t) => t.transform_point(&p.local.into()).coords,
-                None => p.local,
-            };
-            self.targets[p.vertex] = x;
-            if let Some(k) = p.spring {
-                self.system.elements.springs[k].target = x;
-            }
-        }
+        self.compiled
+            .set_targets(from, to, s, &mut self.system, &mut self.targets);
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -190,25 +170,7 @@ impl SolidStepper {
         frame_dt: f64,
     ) -> Result<(SimState, FrameStats), SimError> {
         let t0 = Instant::now();
-        for (i, (e, r)) in scene.iter().zip(&self.compiled.ranges).enumerate() {
-            if let Some(r) = r
-                && e.vertex_count() != r.len()
-            {
-                return Err(SimError::SceneChanged(format!(
-                    "element {i} '{}' has {} vertices at frame {frame} but had {} at the start",
-                    e.name,
-                    e.vertex_count(),
-                    r.len()
-                )));
-            }
-        }
-        if scene.len() != self.compiled.ranges.len() {
-            return Err(SimError::SceneChanged(format!(
-                "the scene has {} elements at frame {frame} but had {} at the start",
-                scene.len(),
-                self.compiled.ranges.len()
-            )));
-        }
+        self.compiled.check_scene(scene, frame)?;
         let to: Vec<Option<Transform>> = scene.iter().map(|e| e.transform).collect();
         let n = self.settings.substeps.max(1);
         let h = frame_dt / n as f64;

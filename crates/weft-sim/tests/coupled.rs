@@ -265,7 +265,14 @@ fn fluid_drag_behavior_builds_elements_from_secs() {
         1.0,
         "cloth: defaults"
     );
-    assert!(c.warnings.is_empty(), "{:?}", c.warnings);
+    // Without a fluid domain the drag elements feel nothing: said once, and no grid.
+    assert_eq!(c.warnings.len(), 1, "{:?}", c.warnings);
+    assert!(
+        c.warnings[0].contains("no fluid domain"),
+        "{:?}",
+        c.warnings
+    );
+    assert!(c.fluid.is_none());
     let c = compile(&[hair.clone(), cloth.clone()], &tree(false)).unwrap();
     assert!(c.drag_elements.is_empty());
     assert!(
@@ -279,6 +286,69 @@ fn fluid_drag_behavior_builds_elements_from_secs() {
     });
     let e = compile(&[hair, cloth], &tree(true)).unwrap_err();
     assert!(e.to_string().contains("drag.gamma"), "{e}");
+}
+
+/// A fluid-domain element makes the scene's fluid: automatic bounds enclose the solids plus
+/// the padding (rounded up to whole cells), the Fluid SEC's properties and the flow are kept,
+/// and its SECs count as read. A second domain, and a grid too large for memory, are refused
+/// naming the element and field.
+#[test]
+fn a_fluid_domain_element_makes_the_scenes_fluid() {
+    use std::sync::Arc;
+    use weft_scene::procedural::strands_on_sphere;
+    use weft_scene::{DomainSide, ElementKind, Fluid, FluidDomain, Geometry, SceneElement};
+    let curves = strands_on_sphere([0.0, 1.0, 0.0], 0.1, 5, 4, 0.2, 60.0);
+    let hair = SceneElement::new("hair", ElementKind::Hair, Geometry::Curves(curves));
+    let mut water = SceneElement::new("water", ElementKind::FluidDomain, Geometry::None);
+    water.secs.insert(FluidDomain {
+        padding: 0.05,
+        cell_size: 0.01,
+        lo: [DomainSide::Inflow, DomainSide::Wall, DomainSide::Periodic],
+        hi: [DomainSide::Open, DomainSide::Wall, DomainSide::Periodic],
+        flow: [0.3, 0.0, 0.0],
+        ..Default::default()
+    });
+    water.secs.insert(Fluid::AIR);
+    let tree = BehaviorTree {
+        behaviors: vec![Arc::new(RodMaterial), Arc::new(FluidDrag)],
+    };
+    let c = compile(&[hair.clone(), water.clone()], &tree).unwrap();
+    assert!(c.warnings.is_empty(), "{:?}", c.warnings);
+    let f = c.fluid.as_ref().expect("a fluid");
+    let (lo, hi) = weft_scene::bounds(
+        &c.state
+            .x
+            .iter()
+            .map(|p| [p.x, p.y, p.z])
+            .collect::<Vec<_>>(),
+    )
+    .unwrap();
+    for a in 0..3 {
+        assert!((f.domain.origin[a] - (lo[a] - 0.05)).abs() < 1e-12);
+        let top = f.domain.origin[a] + f.domain.cells[a] as f64 * 0.01;
+        assert!(top >= hi[a] + 0.05 - 1e-9 && top < hi[a] + 0.06, "axis {a}");
+    }
+    assert_eq!(f.properties.density, Fluid::AIR.density);
+    let g = f.initial_grid();
+    assert_eq!(g.vel[0][g.domain.face(0, 3, 2, 2)], 0.3);
+    assert_eq!(
+        f.domain.boundaries.lo[0],
+        weft_fluid::Boundary::Inflow([0.3, 0.0, 0.0])
+    );
+    let mut second = water.clone();
+    second.name = "sea".into();
+    let e = compile(&[hair.clone(), water.clone(), second], &tree).unwrap_err();
+    assert!(e.to_string().contains("'sea'"), "{e}");
+    let mut huge = water;
+    huge.secs.insert(FluidDomain {
+        cell_size: 1e-5,
+        ..Default::default()
+    });
+    let e = compile(&[hair, huge], &tree).unwrap_err().to_string();
+    assert!(
+        e.contains("fluid_domain.cell_size") && e.contains("GiB"),
+        "{e}"
+    );
 }
 
 /// A light strand (ρ_s = `density`) in a closed water box under gravity, stepped `steps`
