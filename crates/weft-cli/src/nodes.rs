@@ -1,7 +1,8 @@
 //! `weft nodes`: the registry, printed.
 
 use std::fmt::Write;
-use weft_graph::{ParamKind, Registry};
+use std::sync::Arc;
+use weft_graph::{NodeSpec, ParamKind, Registry};
 
 fn kind_text(k: &ParamKind) -> String {
     use std::ops::Bound::*;
@@ -34,11 +35,13 @@ fn kind_text(k: &ParamKind) -> String {
 }
 
 /// The registry as text (or JSON), optionally filtered by a substring of the type name.
-pub fn render(reg: &Registry, json: bool, filter: Option<&str>) -> String {
-    let specs: Vec<_> = reg
-        .specs()
-        .filter(|s| filter.is_none_or(|f| s.name.contains(f)))
-        .collect();
+/// Library subgraphs (composite node types such as `solver.coupled`) are listed with the
+/// registered types.
+pub fn render(reg: &Arc<Registry>, json: bool, filter: Option<&str>) -> String {
+    let (library, _) = weft_graph::library_specs(reg);
+    let mut specs: Vec<&NodeSpec> = reg.specs().chain(library.iter()).collect();
+    specs.sort_by(|a, b| a.name.cmp(&b.name));
+    specs.retain(|s| filter.is_none_or(|f| s.name.contains(f)));
     if json {
         let ports: Vec<_> = reg
             .port_types()

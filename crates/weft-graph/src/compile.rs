@@ -135,7 +135,19 @@ fn compile_model(
     m: &FileModel,
     d: &mut Vec<Diagnostic>,
 ) -> Option<Graph> {
-    let env = build_local_types(registry, &m.subgraphs, d);
+    // Library subgraphs are compiled with the file's own; a file may not reuse their names.
+    let mut subs = registry.library().clone();
+    for (name, s) in &m.subgraphs {
+        if subs.contains_key(name) {
+            d.push(Diagnostic::error(
+                s.path.clone(),
+                format!("subgraph '{name}' has the name of a library subgraph (copy it under another name to change it)"),
+            ));
+        } else {
+            subs.insert(name.clone(), s.clone());
+        }
+    }
+    let env = build_local_types(registry, &subs, d);
     let outputs: Vec<(String, &Ref)> = m.outputs.iter().map(|(k, r)| (k.clone(), r)).collect();
     let before = d.iter().filter(|x| x.severity == Severity::Error).count();
     let g = compile_body(&env, &m.nodes, &outputs, None, None, d);
@@ -150,6 +162,15 @@ fn compile_model(
     }
     let after = d.iter().filter(|x| x.severity == Severity::Error).count();
     if after > before { None } else { g }
+}
+
+/// The node specs of the registry's library subgraphs (compiled against the registry), with
+/// any problem in their definitions as diagnostics.
+pub fn library_specs(registry: &Arc<Registry>) -> (Vec<NodeSpec>, Vec<Diagnostic>) {
+    let mut d = Vec::new();
+    let env = build_local_types(registry, registry.library(), &mut d);
+    let specs = env.local.values().map(|t| (*t.spec).clone()).collect();
+    (specs, d)
 }
 
 /// Orders subgraphs so each comes after those it instances; rejects recursion.

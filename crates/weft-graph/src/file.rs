@@ -266,7 +266,11 @@ fn parse_ref(v: Option<&Json>, what: &str, path: Path, d: &mut Vec<Diagnostic>) 
     string(v, what, &path, d).map(|text| Ref { text, path })
 }
 
-fn parse_subgraph(v: &Json, path: &Path, d: &mut Vec<Diagnostic>) -> Option<SubgraphDecl> {
+pub(crate) fn parse_subgraph(
+    v: &Json,
+    path: &Path,
+    d: &mut Vec<Diagnostic>,
+) -> Option<SubgraphDecl> {
     let o = as_obj(v, "a subgraph", path, d)?;
     check_fields(
         o,

@@ -45,7 +45,7 @@ mod spec;
 mod value;
 
 pub use cache::{atomic_write, atomic_write_with};
-pub use compile::{load_path, load_str};
+pub use compile::{library_specs, load_path, load_str};
 pub use diag::{Diagnostic, LoadError, Severity};
 pub use engine::{Context, Graph, NodeReport, NodeStats, RunWarning};
 pub use file::{FORMAT, SUPPORTED_VERSIONS};

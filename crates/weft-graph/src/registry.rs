@@ -58,6 +58,9 @@ pub enum RegistryError {
 pub struct Registry {
     types: BTreeMap<String, NodeType>,
     port_types: BTreeMap<String, PortType>,
+    /// Library subgraphs: composite node types written in the graph format, available to
+    /// every file as if it declared them (see [`Registry::register_subgraph`]).
+    library: BTreeMap<String, crate::file::SubgraphDecl>,
 }
 
 impl Default for Registry {
@@ -72,6 +75,7 @@ impl Registry {
         let mut r = Registry {
             types: BTreeMap::new(),
             port_types: BTreeMap::new(),
+            library: BTreeMap::new(),
         };
         for t in builtin_port_types() {
             r.port_types.insert(t.name.clone(), t);
@@ -89,6 +93,41 @@ impl Registry {
         Ok(())
     }
 
+    /// Registers a library subgraph: a composite node type written as one entry of a graph
+    /// file's `"subgraphs"` (`json` is that entry's value). Every graph can instance it; its
+    /// stages are ordinary nodes whose parameters are set as `instance.stage.param`, and a
+    /// file can copy it under another name to change it. The definition is parsed here and
+    /// compiled (type-checked against the registry) when a graph loads.
+    pub fn register_subgraph(&mut self, name: &str, json: &str) -> Result<(), RegistryError> {
+        if self.types.contains_key(name) || self.library.contains_key(name) {
+            return Err(RegistryError::Duplicate(name.to_string()));
+        }
+        let bad = |message: String| RegistryError::BadSpec {
+            node: name.to_string(),
+            message,
+        };
+        let v: serde_json::Value =
+            serde_json::from_str(json).map_err(|e| bad(format!("invalid JSON: {e}")))?;
+        let mut d = Vec::new();
+        let path = vec!["subgraphs".to_string(), name.to_string()];
+        let decl = crate::file::parse_subgraph(&v, &path, &mut d);
+        match decl {
+            Some(s) if d.iter().all(|x| x.severity != crate::diag::Severity::Error) => {
+                self.library.insert(name.to_string(), s);
+                Ok(())
+            }
+            _ => Err(bad(d
+                .iter()
+                .map(|x| x.to_string())
+                .collect::<Vec<_>>()
+                .join("; "))),
+        }
+    }
+
+    pub(crate) fn library(&self) -> &BTreeMap<String, crate::file::SubgraphDecl> {
+        &self.library
+    }
+
     /// Registers a node type; its spec is checked for consistency first.
     pub fn register<F>(&mut self, spec: NodeSpec, factory: F) -> Result<(), RegistryError>
     where
@@ -102,7 +141,7 @@ impl Registry {
         spec: NodeSpec,
         factory: Factory,
     ) -> Result<(), RegistryError> {
-        if self.types.contains_key(&spec.name) {
+        if self.types.contains_key(&spec.name) || self.library.contains_key(&spec.name) {
             return Err(RegistryError::Duplicate(spec.name));
         }
         self.check_spec(&spec)?;

@@ -5,7 +5,7 @@ use crate::error::SimError;
 use nalgebra::Vector3;
 use std::collections::{BTreeMap, BTreeSet};
 use std::ops::Range;
-use weft_scene::{ElementKind, SceneElement, Transform};
+use weft_scene::{Channel, ElementKind, SceneElement, Transform};
 use weft_solid::{SolidSystem, State};
 
 /// An attached vertex and where its target comes from.
@@ -112,6 +112,30 @@ fn lerp(a: Option<Transform>, b: Option<Transform>, s: f64) -> Option<Transform>
 }
 
 impl Compiled {
+    /// The scene with simulated elements moved to `state` (and a `velocity` channel set).
+    pub fn scene_at(&self, scene: &[SceneElement], state: &State) -> Vec<SceneElement> {
+        scene
+            .iter()
+            .zip(&self.ranges)
+            .map(|(e, r)| {
+                let mut e = e.clone();
+                if let Some(r) = r {
+                    for (p, x) in e
+                        .geometry_mut()
+                        .positions_mut()
+                        .iter_mut()
+                        .zip(&state.x[r.clone()])
+                    {
+                        *p = [x.x, x.y, x.z];
+                    }
+                    let vel = state.v[r.clone()].iter().map(|v| [v.x, v.y, v.z]).collect();
+                    e.set_channel("velocity", Channel::Vec3(vel));
+                }
+                e
+            })
+            .collect()
+    }
+
     /// Checks that `scene` (at `frame`) has the structure the system was compiled from: the
     /// same elements with the same vertex counts.
     pub fn check_scene(&self, scene: &[SceneElement], frame: i64) -> Result<(), SimError> {

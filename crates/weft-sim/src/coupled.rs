@@ -1,6 +1,12 @@
 //! Two-way coupling of solids with the Eulerian fluid (DESIGN §6): one time step.
 //!
-//! (1) Predict the fluid: advect, add gravity → u*. (2) Newton iterations k:
+//! Gravity on the fluid is balanced by its hydrostatic pressure, so the grid solves for the
+//! pressure *relative to hydrostatic* (Boussinesq-free reduced pressure, exact for a fluid of
+//! uniform density): the fluid feels no gravity, an open side sits at hydrostatic pressure
+//! (still water deep below it, not a waterfall), and the solids get the hydrostatic part as
+//! the explicit buoyancy −ρ_f V g. Otherwise:
+//!
+//! (1) Predict the fluid: advect → u*. (2) Newton iterations k:
 //! **A/B** sample every drag element at the current solid iterate; per sample, the drag
 //! tensor's diagonal k (per unit solid volume, from the seed's law at the current relative
 //! speed), the fluid velocity u^k and pressure gradient ∇p^k interpolated with the same
@@ -73,7 +79,8 @@ pub struct CoupledSettings {
     pub pressure: PressureSolve,
     /// The fluid.
     pub fluid: FluidProperties,
-    /// Gravity on the fluid [m/s²] (the solids take theirs from their system).
+    /// Gravity [m/s²]: the hydrostatic pressure's gradient ρ_f g, felt by the solids as
+    /// buoyancy (the solids take their own weight from their system).
     pub gravity: [f64; 3],
     /// Cap on a face's solid fraction.
     pub max_solid_fraction: f64,
@@ -233,13 +240,15 @@ pub fn relax(start: &State, current: &State, next: &mut State, h: f64, memory: &
     memory.residual = Some(r);
 }
 
-/// The coupled stepper's reusable parts: the solid integrator (its pattern and symbolic
+/// The coupled stepper's reusable parts (built on first use, or by [`CoupledStepper::new`]):
+/// the solid integrator (its pattern and symbolic
 /// factorization), the pressure projection (its matrix pattern and preconditioner), and
 /// scratch buffers. The stages are public so that a graph can run them as separate nodes;
 /// [`CoupledStepper::step`] runs them in order.
+#[derive(Default)]
 pub struct CoupledStepper {
-    integrator: Integrator,
-    projection: Projection,
+    integrator: Option<Integrator>,
+    projection: Option<Projection>,
     advect_scratch: Option<MacGrid>,
     /// The pressure gradient on the faces (sampled like a velocity).
     gradient: Option<MacGrid>,
@@ -250,16 +259,16 @@ impl CoupledStepper {
     /// Builds the solver structures for a solid system and a fluid domain.
     pub fn new(sys: &SolidSystem, grid: &MacGrid) -> Result<Self, StepError> {
         Ok(CoupledStepper {
-            integrator: Integrator::new(sys)?,
-            projection: Projection::new(grid),
+            integrator: Some(Integrator::new(sys)?),
+            projection: Some(Projection::new(grid)),
             advect_scratch: None,
             gradient: None,
             samples: Vec::new(),
         })
     }
 
-    /// **Predict** the fluid: `out` becomes `grid` advected over `h` with gravity added
-    /// (u*). For [`Coupling::OneWay`] it is then projected as if no solid were there, and is
+    /// **Predict** the fluid: `out` becomes `grid` advected over `h` (u*; gravity is in the
+    /// hydrostatic pressure, see the module doc). For [`Coupling::OneWay`] it is then projected as if no solid were there, and is
     /// the fluid the solids see. Returns the CG iterations spent.
     pub fn predict(
         &mut self,
@@ -270,7 +279,7 @@ impl CoupledStepper {
     ) -> Result<usize, CoupledError> {
         out.copy_from(grid);
         advect_velocity(out, h, &mut self.advect_scratch);
-        out.accelerate(settings.gravity, h);
+        out.apply_boundaries();
         if settings.method != Coupling::OneWay {
             return Ok(0);
         }
@@ -316,6 +325,7 @@ impl CoupledStepper {
         out.lift.clear();
         out.outside = 0;
         let size = seen.domain.size();
+        let g = Vector3::from(settings.gravity);
         for pt in &out.points {
             let e = &elements[pt.element as usize];
             let pos: Vector3<f64> = (0..3)
@@ -338,7 +348,8 @@ impl CoupledStepper {
             } else {
                 [0.0; 3]
             };
-            let f = -pt.volume * gp + Vector3::from(lift);
+            // Pressure: the dynamic part −V∇p from the grid, the hydrostatic part −ρ_f V g.
+            let f = -pt.volume * (gp + settings.fluid.density * g) + Vector3::from(lift);
             for j in 0..3 {
                 let (w, vi) = (pt.weights[j], pt.verts[j] as usize);
                 if w == 0.0 {
@@ -384,9 +395,14 @@ impl CoupledStepper {
         sys.forces.clone_from(&exchange.forces);
         out.x.clone_from(&start.x);
         out.v.clone_from(&start.v);
-        self.integrator
+        let fail = |source| CoupledError::Solid { iteration, source };
+        let integrator = match &mut self.integrator {
+            Some(i) => i,
+            None => self.integrator.insert(Integrator::new(sys).map_err(fail)?),
+        };
+        integrator
             .step(sys, out, targets, h, &settings.solid)
-            .map_err(|source| CoupledError::Solid { iteration, source })
+            .map_err(fail)
     }
 
     /// **Rasterize** (stage D): `out` becomes the predicted fluid `u_star` with the
@@ -427,10 +443,11 @@ impl CoupledStepper {
         settings: &CoupledSettings,
         iteration: usize,
     ) -> Result<PressureStats, CoupledError> {
-        if self.projection.unknowns() != fluid.domain.cell_count() {
-            self.projection = Projection::new(fluid);
-        }
-        self.projection
+        let projection = match &mut self.projection {
+            Some(p) if p.unknowns() == fluid.domain.cell_count() => p,
+            _ => self.projection.insert(Projection::new(fluid)),
+        };
+        projection
             .project(fluid, settings.fluid.density, h, &settings.pressure)
             .map_err(|source| CoupledError::Pressure { iteration, source })
     }
@@ -463,7 +480,7 @@ impl CoupledStepper {
         let mut exchange = Exchange::default();
         let mut relaxation = Relaxation::default();
         // The iterates: the first sees the fluid as the last step left it (divergence-free,
-        // with its pressure), not u*: u* still holds this step's gravity, which the pressure
+        // with its pressure), not u*: u* still holds this step's advection, which the pressure
         // has yet to balance.
         let mut solid = state.clone();
         let mut next = state.clone();

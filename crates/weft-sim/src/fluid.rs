@@ -41,7 +41,7 @@ fn side(s: DomainSide, flow: [f64; 3]) -> Boundary {
 }
 
 /// Finds the scene's fluid domain (at most one) and discretizes it. Automatic bounds enclose
-/// the simulated vertices `x` and every collider (at its transform) plus the padding. The
+/// the simulated vertices `x` and every collider plus the padding. The
 /// domain element's SECs are marked read through `read`.
 pub(crate) fn fluid_spec(
     scene: &[SceneElement],
@@ -103,13 +103,8 @@ pub(crate) fn fluid_spec(
             }
             let mut pts: Vec<[f64; 3]> = x.iter().map(|p| [p.x, p.y, p.z]).collect();
             for c in scene.iter().filter(|c| c.kind == ElementKind::Collider) {
-                for p in c.geometry.positions() {
-                    let q = match c.transform {
-                        Some(t) => t.transform_point(&(*p).into()).coords.into(),
-                        None => *p,
-                    };
-                    pts.push(q);
-                }
+                // Collider positions are already placed at their transform.
+                pts.extend_from_slice(c.geometry.positions());
             }
             let Some((lo, hi)) = weft_scene::bounds(&pts) else {
                 return Err(bad(

@@ -11,7 +11,7 @@ use crate::error::SimError;
 use nalgebra::Vector3;
 use std::sync::Arc;
 use std::time::Instant;
-use weft_scene::{Channel, SceneElement, Transform};
+use weft_scene::{SceneElement, Transform};
 use weft_solid::{Integrator, Settings, SolidSystem, State, StepError};
 
 /// How frames are stepped.
@@ -200,28 +200,6 @@ impl SolidStepper {
 
     /// The scene with simulated elements moved to `state` (and a `velocity` channel set).
     pub fn scene_at(&self, scene: &[SceneElement], state: &SimState) -> Vec<SceneElement> {
-        scene
-            .iter()
-            .zip(&self.compiled.ranges)
-            .map(|(e, r)| {
-                let mut e = e.clone();
-                if let Some(r) = r {
-                    for (p, x) in e
-                        .geometry_mut()
-                        .positions_mut()
-                        .iter_mut()
-                        .zip(&state.solid.x[r.clone()])
-                    {
-                        *p = [x.x, x.y, x.z];
-                    }
-                    let vel = state.solid.v[r.clone()]
-                        .iter()
-                        .map(|v| [v.x, v.y, v.z])
-                        .collect();
-                    e.set_channel("velocity", Channel::Vec3(vel));
-                }
-                e
-            })
-            .collect()
+        self.compiled.scene_at(scene, &state.solid)
     }
 }

@@ -4,7 +4,7 @@ use super::types::BehaviorValue;
 use std::sync::Arc;
 use weft_graph::{Kernel, NodeSpec, ParamSpec, Registry, RegistryError, Value};
 use weft_sim::{
-    AttachmentBehavior, Behavior, BehaviorTree, Damping, DiscreteShellMaterial, Gravity,
+    AttachmentBehavior, Behavior, BehaviorTree, Damping, DiscreteShellMaterial, FluidDrag, Gravity,
     RodMaterial,
 };
 
@@ -43,6 +43,12 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         "behavior.attachment",
         "attachments: every attachment element's vertices follow their targets",
         || Arc::new(AttachmentBehavior),
+    )?;
+    plain(
+        r,
+        "behavior.fluid_drag",
+        "fluid drag: every hair segment and cloth triangle exchanges momentum with the scene's fluid (drag, lift, buoyancy), from its Drag SEC or the defaults; needs solver.coupled and a fluid domain",
+        || Arc::new(FluidDrag),
     )?;
     r.register(
         NodeSpec::new(

@@ -5,8 +5,8 @@ use weft_graph::{
     EvalCx, Kernel, NodeError, NodeSpec, ParamSpec, Params, Registry, RegistryError, Value,
 };
 use weft_scene::{
-    Attachment, AttachmentMode, Channel, Curves, ElementKind, Geometry, Mesh, SceneElement,
-    Transform,
+    Attachment, AttachmentMode, Channel, Curves, DomainSide, ElementKind, FluidDomain, Geometry,
+    Mesh, SceneElement, Transform,
 };
 
 fn check_name(p: &Params) -> Result<(), String> {
@@ -158,6 +158,55 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             }))
         },
     )?;
+    let sides = ["wall", "open", "inflow", "periodic"];
+    let mut spec = NodeSpec::new("convert.fluid_domain", "a fluid domain: the box a fluid fills (given, or the solids' bounds plus padding at the start frame), its cell size and its six sides; carries a Fluid Domain SEC (attach sec.fluid for air or a custom fluid; water by default)")
+        .output("element", "element", "a data-less fluid-domain element")
+        .param(ParamSpec::string("name", "fluid").doc("element name, unique in the scene"))
+        .param(ParamSpec::bool("auto_bounds", true).doc("true: the solids' and colliders' bounds plus padding; false: min and max"))
+        .param(ParamSpec::vec3("min", [-1.0; 3]).unit("m").doc("minimum corner (auto_bounds = false)"))
+        .param(ParamSpec::vec3("max", [1.0; 3]).unit("m").doc("maximum corner (auto_bounds = false)"))
+        .param(ParamSpec::float("padding", 0.1).ge(0.0).unit("m").doc("margin around the solids (auto_bounds = true)"))
+        .param(ParamSpec::float("cell_size", 0.02).gt(0.0).unit("m").doc("cell size Δx; a grid too large for memory is refused before allocating"))
+        .param(ParamSpec::vec3("flow", [0.0; 3]).unit("m/s").doc("the current or wind: the initial velocity, and the velocity at inflow sides"));
+    for s in ["x_min", "x_max", "y_min", "y_max", "z_min", "z_max"] {
+        spec = spec.param(ParamSpec::choice(s, &sides, "wall").doc("wall: no flow through; open: still fluid at zero pressure; inflow: the flow enters or leaves; periodic: wraps to the opposite side (set both)"));
+    }
+    r.register(spec, |p| {
+        check_name(p)?;
+        for axis in ["x", "y", "z"] {
+            let (lo, hi) = (p.str(&format!("{axis}_min")), p.str(&format!("{axis}_max")));
+            if (lo == "periodic") != (hi == "periodic") {
+                return Err(format!("param '{axis}_min'/'{axis}_max': a periodic axis must be periodic on both sides (got {lo} and {hi})"));
+            }
+        }
+        if !p.bool("auto_bounds") {
+            let (lo, hi) = (p.vec3("min"), p.vec3("max"));
+            if (0..3).any(|a| hi[a] <= lo[a]) {
+                return Err(format!("param 'max': must exceed 'min' on every axis (min {lo:?}, max {hi:?})"));
+            }
+        }
+        Ok(Kernel::from_fn(|cx| {
+            let p = cx.params();
+            let side = |name: &str| match p.str(name) {
+                "open" => DomainSide::Open,
+                "inflow" => DomainSide::Inflow,
+                "periodic" => DomainSide::Periodic,
+                _ => DomainSide::Wall,
+            };
+            let sec = FluidDomain {
+                bounds: (!p.bool("auto_bounds")).then(|| (p.vec3("min"), p.vec3("max"))),
+                padding: p.f64("padding"),
+                cell_size: p.f64("cell_size"),
+                lo: [side("x_min"), side("y_min"), side("z_min")],
+                hi: [side("x_max"), side("y_max"), side("z_max")],
+                flow: p.vec3("flow"),
+            };
+            let mut e = SceneElement::new(p.str("name"), ElementKind::FluidDomain, Geometry::None);
+            e.secs.insert(sec);
+            cx.set("element", Value::new(e));
+            Ok(())
+        }))
+    })?;
     r.register(
         NodeSpec::new("convert.attachment", "attaches vertices of an element to where they are at the start frame, carried by an optional animated transform")
             .input("target", "element", "the element whose vertices are attached")

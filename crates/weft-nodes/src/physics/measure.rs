@@ -18,6 +18,25 @@ fn element<'a>(cx: &EvalCx<'_>, scene: &'a Scene) -> Result<&'a SceneElement, No
 pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
     r.register(
         NodeSpec::new(
+            "scene.gather",
+            "a scene from elements, in connection order (the input of solvers that take a scene)",
+        )
+        .input_multi("elements", "element", "the elements")
+        .output("scene", "scene", "the scene"),
+        |_| {
+            Ok(Kernel::from_fn(|cx| {
+                let scene: Scene = cx
+                    .inputs("elements")?
+                    .iter()
+                    .filter_map(|v| v.get::<SceneElement>().cloned())
+                    .collect();
+                cx.set("scene", weft_graph::Value::new(scene));
+                Ok(())
+            }))
+        },
+    )?;
+    r.register(
+        NodeSpec::new(
             "scene.centroid",
             "the mean vertex position of one element of a scene",
         )

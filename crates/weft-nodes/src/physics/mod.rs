@@ -3,6 +3,7 @@
 
 mod behaviors;
 mod convert;
+mod coupled;
 mod geo;
 mod measure;
 mod output;
@@ -11,6 +12,7 @@ mod solver;
 mod types;
 mod xform;
 
+pub use coupled::CoupledState;
 pub use types::{BehaviorValue, Scene};
 
 use weft_graph::{Registry, RegistryError};
@@ -24,5 +26,6 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
     xform::register(r)?;
     measure::register(r)?;
     output::register(r)?;
-    solver::register(r)
+    solver::register(r)?;
+    coupled::register(r)
 }

@@ -3,7 +3,7 @@
 //! node and parameter. Defaults are the SEC types' documented defaults.
 
 use weft_graph::{Kernel, NodeSpec, ParamSpec, Params, Registry, RegistryError, Value};
-use weft_scene::{Density, DiscreteShell, Rod, SceneElement, Sec};
+use weft_scene::{Density, DiscreteShell, Drag, Fluid, Rod, SceneElement, Sec};
 
 fn attach<S: Sec + Clone>(
     name: &str,
@@ -142,6 +142,75 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         |p| Density {
             area_density: p.f64("area_density"),
             line_density: p.f64("line_density"),
+        },
+        r,
+    )?;
+    let d = Drag::default();
+    attach(
+        "sec.drag",
+        "Drag SEC: how hair or cloth exchanges momentum with a fluid (the seed's anisotropic drag: C_l = 1/k_l + xi_N 1.75/sqrt(150 k_l) (1 - gamma)^-1.5 Re^c, 1/k_l = xi_D xi_l / 1e4; force -(mu V/D^2) R C R^T dv; lift xi_L)",
+        vec![
+            ParamSpec::float("xi_d", d.xi_d)
+                .ge(0.0)
+                .doc("global drag scale ξ_D"),
+            ParamSpec::float("xi_perp", d.xi_perp)
+                .ge(0.0)
+                .doc("normal drag scale ξ⊥"),
+            ParamSpec::float("xi_par", d.xi_par)
+                .ge(0.0)
+                .doc("tangential drag scale ξ∥"),
+            ParamSpec::float("xi_n", d.xi_n)
+                .ge(0.0)
+                .doc("nonlinear (inertial) term scale ξ_N; 0: linear drag"),
+            ParamSpec::float("xi_l", d.xi_l)
+                .ge(0.0)
+                .doc("lift scale ξ_L; 0: no lift"),
+            ParamSpec::float("diameter", d.diameter)
+                .gt(0.0)
+                .unit("m")
+                .doc("fibre diameter D"),
+            ParamSpec::float("gamma", d.gamma)
+                .ge(0.0)
+                .lt(1.0)
+                .doc("material fraction γ"),
+            ParamSpec::float("degree", d.degree)
+                .ge(0.0)
+                .doc("drag degree c: the exponent of the Reynolds number"),
+        ],
+        |p| Drag {
+            xi_d: p.f64("xi_d"),
+            xi_perp: p.f64("xi_perp"),
+            xi_par: p.f64("xi_par"),
+            xi_n: p.f64("xi_n"),
+            xi_l: p.f64("xi_l"),
+            diameter: p.f64("diameter"),
+            gamma: p.f64("gamma"),
+            degree: p.f64("degree"),
+        },
+        r,
+    )?;
+    attach(
+        "sec.fluid",
+        "Fluid SEC: the material filling a fluid domain (SI): a preset (water or air at 20 °C) or custom density and viscosity",
+        vec![
+            ParamSpec::choice("preset", &["water", "air", "custom"], "water")
+                .doc("water: 998.2 kg/m³, 1.002e-3 Pa·s; air: 1.204 kg/m³, 1.81e-5 Pa·s; custom: the two parameters below"),
+            ParamSpec::float("density", Fluid::WATER.density)
+                .gt(0.0)
+                .unit("kg/m³")
+                .doc("density ρ (preset custom only)"),
+            ParamSpec::float("viscosity", Fluid::WATER.viscosity)
+                .gt(0.0)
+                .unit("Pa·s")
+                .doc("dynamic viscosity μ (preset custom only)"),
+        ],
+        |p| match p.str("preset") {
+            "air" => Fluid::AIR,
+            "custom" => Fluid {
+                density: p.f64("density"),
+                viscosity: p.f64("viscosity"),
+            },
+            _ => Fluid::WATER,
         },
         r,
     )
