@@ -292,13 +292,19 @@ impl CoupledStepper {
     }
 
     /// **Gather** (stages A/B): samples every drag element at positions `x` on the lattices
-    /// rasterization uses ([`segment_lattice`], [`triangle_lattice`]); per sample, the drag
+    /// rasterization uses ([`segment_lattice`], [`triangle_lattice`]). The lattices (sample
+    /// counts, weights and volumes) come from the step's start positions `x0`, so that they do
+    /// not jump between coupling iterations when an element's size crosses a lattice step (a
+    /// discontinuous fixed-point map can cycle instead of converging; measured on the
+    /// flag_wind example, a 5-iteration cycle). Per sample, the drag
     /// diagonal at the relative speed against the fluid `seen`, its velocity, pressure
     /// gradient and lift, all interpolated with the trilinear weights rasterization uses;
     /// lumped to vertices as linear drag and explicit forces.
+    #[allow(clippy::too_many_arguments)]
     pub fn gather(
         &mut self,
         elements: &[DragElement],
+        x0: &[Vector3<f64>],
         x: &[Vector3<f64>],
         v: &[Vector3<f64>],
         seen: &MacGrid,
@@ -307,7 +313,7 @@ impl CoupledStepper {
     ) {
         let dx = seen.domain.dx;
         let mu = settings.fluid.viscosity;
-        sample_points(elements, x, dx, &mut out.points);
+        sample_points(elements, x0, dx, &mut out.points);
         let grad = self
             .gradient
             .get_or_insert_with(|| MacGrid::new(seen.domain.clone()));
@@ -498,6 +504,7 @@ impl CoupledStepper {
             let t = Instant::now();
             self.gather(
                 elements,
+                &state.x,
                 &solid.x,
                 &solid.v,
                 &fluid,

@@ -260,8 +260,15 @@ fn forces(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     match seen {
         Some(g) => {
             let x = &it.sim.solid;
-            ws.stepper
-                .gather(&step.compiled.drag_elements, &x.x, &x.v, g, &st, &mut ex);
+            ws.stepper.gather(
+                &step.compiled.drag_elements,
+                &step.start.solid.x,
+                &x.x,
+                &x.v,
+                g,
+                &st,
+                &mut ex,
+            );
             if ex.outside > 0 && it.iteration == 0 {
                 cx.warn(format!(
                     "frame {}: {} of {} solid samples are outside the fluid domain (clipped: they feel the nearest fluid and give nothing back); enlarge the domain",

@@ -25,7 +25,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
     behaviors::register(r)?;
     xform::register(r)?;
     measure::register(r)?;
+    coupled::register(r)?;
     output::register(r)?;
-    solver::register(r)?;
-    coupled::register(r)
+    solver::register(r)
 }

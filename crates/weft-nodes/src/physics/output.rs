@@ -2,10 +2,11 @@
 //! frames. They write when pulled (at each frame `weft run` evaluates); every file is written
 //! atomically, and the output value is the path written.
 
+use super::coupled::CoupledState;
 use super::types::Scene;
 use std::path::{Path, PathBuf};
 use weft_graph::{EvalCx, Kernel, NodeError, NodeSpec, ParamSpec, Registry, RegistryError};
-use weft_scene::preview::{PreviewItem, auto_camera, render, write_png};
+use weft_scene::preview::{Image, PreviewItem, auto_camera, render, write_png};
 use weft_scene::{
     ElementKind, Geometry, SceneElement, UsdaScene, bounds, write_obj_curves, write_obj_mesh,
 };
@@ -100,6 +101,119 @@ fn color(kind: ElementKind) -> [u8; 3] {
     }
 }
 
+/// Speed → colour: dark blue (still) through teal and green to yellow (`speed_scale`).
+fn speed_colour(t: f64) -> [u8; 3] {
+    const STOPS: [(f64, [f64; 3]); 4] = [
+        (0.0, [20.0, 30.0, 90.0]),
+        (0.35, [30.0, 120.0, 180.0]),
+        (0.65, [90.0, 200.0, 140.0]),
+        (1.0, [250.0, 230.0, 90.0]),
+    ];
+    let t = if t.is_finite() {
+        t.clamp(0.0, 1.0)
+    } else {
+        1.0
+    };
+    let k = STOPS.iter().position(|s| s.0 >= t).unwrap_or(3).max(1);
+    let ((t0, a), (t1, b)) = (STOPS[k - 1], STOPS[k]);
+    let s = (t - t0) / (t1 - t0);
+    [0, 1, 2].map(|c| (a[c] + s * (b[c] - a[c])).round() as u8)
+}
+
+/// A slice of fluid speed through the domain, normal to `slice_axis` at `slice_at` (a
+/// fraction of the domain), `height` pixels tall, with the elements' vertices projected onto
+/// it as dark dots.
+fn fluid_panel(
+    grid: &weft_fluid::MacGrid,
+    elements: &[&SceneElement],
+    p: &weft_graph::Params,
+    flow: [f64; 3],
+    height: u32,
+) -> Image {
+    let d = &grid.domain;
+    let size = d.size();
+    let n = match p.str("slice_axis") {
+        "x" => 0,
+        "y" => 1,
+        _ => 2,
+    };
+    // In-plane axes (horizontal, vertical): looking along −z, down −y, or along −x.
+    let (a, b) = match n {
+        0 => (2, 1),
+        1 => (0, 2),
+        _ => (0, 1),
+    };
+    let h = height;
+    let w = ((h as f64 * size[a] / size[b]).round() as u32).clamp(16, 4 * h);
+    let at = d.origin[n] + p.f64("slice_at").clamp(0.0, 1.0) * size[n];
+    let mut speeds = vec![0.0; (w * h) as usize];
+    for py in 0..h {
+        for px in 0..w {
+            let mut q = [0.0; 3];
+            q[n] = at;
+            q[a] = d.origin[a] + (px as f64 + 0.5) / w as f64 * size[a];
+            q[b] = d.origin[b] + (1.0 - (py as f64 + 0.5) / h as f64) * size[b];
+            let u = grid.velocity_at(q);
+            speeds[(py * w + px) as usize] = (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt();
+        }
+    }
+    let wind = (flow[0] * flow[0] + flow[1] * flow[1] + flow[2] * flow[2]).sqrt();
+    let scale = match p.f64("speed_scale") {
+        s if s > 0.0 => s,
+        _ if wind > 0.0 => 1.5 * wind,
+        _ => speeds.iter().cloned().fold(1e-12, f64::max),
+    };
+    let mut rgb = Vec::with_capacity((w * h * 3) as usize);
+    for s in &speeds {
+        rgb.extend(speed_colour(s / scale));
+    }
+    let mut img = Image {
+        width: w,
+        height: h,
+        rgb,
+    };
+    for e in elements {
+        let c = match e.kind {
+            ElementKind::Cloth => [110, 40, 10],
+            ElementKind::Hair => [35, 20, 10],
+            _ => [80, 80, 84],
+        };
+        for v in e.geometry.positions() {
+            let px = ((v[a] - d.origin[a]) / size[a] * w as f64).floor();
+            let py = ((1.0 - (v[b] - d.origin[b]) / size[b]) * h as f64).floor();
+            for (dx, dy) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
+                let (x, y) = (px + dx, py + dy);
+                if x >= 0.0 && y >= 0.0 && x < w as f64 && y < h as f64 {
+                    let i = ((y as u32 * w + x as u32) * 3) as usize;
+                    img.rgb[i..i + 3].copy_from_slice(&c);
+                }
+            }
+        }
+    }
+    img
+}
+
+/// Two images of the same height, left and right, with a 2-pixel white rule between.
+fn side_by_side(l: &Image, r: &Image) -> Image {
+    let h = l.height.min(r.height);
+    let w = l.width + 2 + r.width;
+    let mut rgb = Vec::with_capacity((w * h * 3) as usize);
+    for y in 0..h as usize {
+        let row = |img: &Image| {
+            let s = y * img.width as usize * 3;
+            img.rgb[s..s + img.width as usize * 3].to_vec()
+        };
+        rgb.extend(row(l));
+        rgb.extend([255u8; 6]);
+        rgb.extend(row(r));
+    }
+    Image {
+        width: w,
+        height: h,
+        rgb,
+    }
+}
+
 fn preview(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let scene = cx.input_as::<Scene>("scene")?;
     let p = cx.params().clone();
@@ -142,7 +256,15 @@ fn preview(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
         }
         None => auto_camera(([-1.0; 3], [1.0; 3]), w as f64 / h as f64),
     };
-    let image = render(&items, &cam, w, h);
+    let mut image = render(&items, &cam, w, h);
+    if let Some(v) = cx.input_opt("fluid")?
+        && let Some(state) = v.get::<CoupledState>()
+        && let Some(grid) = &state.fluid
+    {
+        let flow = state.compiled.fluid.as_ref().map_or([0.0; 3], |f| f.flow);
+        let panel = fluid_panel(grid, &elements, &p, flow, h);
+        image = side_by_side(&image, &panel);
+    }
     let path = PathBuf::from(p.str("directory")).join(format!(
         "{}.{:04}.png",
         p.str("prefix"),
@@ -178,14 +300,18 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         |_| Ok(Kernel::Compute(Box::new(UsdOut { scene: None, upstream: 0 }))),
     )?;
     r.register(
-        NodeSpec::new("output.preview", "renders each frame to DIRECTORY/PREFIX.FRAME.png (software renderer, camera framing the rest shapes)")
+        NodeSpec::new("output.preview", "renders each frame to DIRECTORY/PREFIX.FRAME.png (software renderer, camera framing the rest shapes); with a coupled state on 'fluid', a slice of fluid speed beside it")
             .input("scene", "scene", "the scene to draw")
+            .input_default("fluid", "coupled", serde_json::json!(null), "a coupled solver state: adds a panel with a slice of fluid speed (dark blue still, yellow at speed_scale) and the solids' vertices projected on it")
             .output("path", "string", "the image written")
             .param(ParamSpec::string("directory", "out/preview").doc("output directory (relative to the working directory)"))
             .param(ParamSpec::string("prefix", "frame").doc("file name prefix"))
             .param(ParamSpec::int("width", 640).ge(16.0).le(8192.0).doc("image width [px]"))
             .param(ParamSpec::int("height", 480).ge(16.0).le(8192.0).doc("image height [px]"))
             .param(ParamSpec::float("margin", 2.0).gt(0.0).doc("how much larger than the rest shapes the view is"))
+            .param(ParamSpec::choice("slice_axis", &["x", "y", "z"], "z").doc("fluid panel: the slice's normal"))
+            .param(ParamSpec::float("slice_at", 0.5).ge(0.0).le(1.0).doc("fluid panel: where the slice cuts the domain along its normal (fraction)"))
+            .param(ParamSpec::float("speed_scale", 0.0).ge(0.0).unit("m/s").doc("fluid panel: the speed drawn yellow; 0: 1.5 × the domain's flow (or the largest speed when there is none)"))
             .param(elements()),
         |_| Ok(Kernel::from_fn(preview)),
     )?;
