@@ -131,3 +131,38 @@ fn bad_fluid_domains_are_named() {
     let e = load_error(&text);
     assert!(e.contains("water") && e.contains("periodic"), "{e}");
 }
+
+/// Solids outside the domain are clipped with a warning naming the frame and the count; a
+/// pressure solve that cannot reach its tolerance is an error naming the stage, the frame, the
+/// coupling iteration and the residual (the mixture divergence) reached.
+#[test]
+fn outside_solids_warn_and_a_failed_pressure_solve_names_its_frame() {
+    // A domain that covers only the strand's root region (the strand hangs from (0, 1.05, 0)).
+    let text = strand_graph("coupled", r#", "water.element""#).replace(
+        r#""cell_size": 0.02"#,
+        r#""cell_size": 0.02, "auto_bounds": false, "min": [-0.1, 0.95, -0.1], "max": [0.1, 1.15, 0.1]"#,
+    );
+    let mut g = graph(&text);
+    tip(&mut g, 1);
+    let w = g.take_warnings();
+    assert!(
+        w.iter().any(
+            |w| w.message.contains("frame 1") && w.message.contains("outside the fluid domain")
+        ),
+        "{w:?}"
+    );
+    let mut g = graph(&strand_graph("coupled", r#", "water.element""#));
+    g.set_param("solve", "pressure.max_iterations", serde_json::json!(1))
+        .unwrap();
+    g.set_param("solve", "pressure.tolerance", serde_json::json!(1e-300))
+        .unwrap();
+    let e = g.pull("tip", Context::new(1)).unwrap_err().to_string();
+    assert!(
+        e.contains("solve/pressure")
+            && e.contains("frame 1")
+            && e.contains("coupling iteration 0")
+            && e.contains("did not converge")
+            && e.contains("divergence"),
+        "{e}"
+    );
+}

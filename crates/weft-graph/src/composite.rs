@@ -345,7 +345,9 @@ impl CompositeKernel {
                     cx.warn(format!(
                         "did not converge after {max} iterations (residual {r:e})"
                     ));
-                    return self.outputs(ctx, &node);
+                    let out = self.outputs(ctx, &node);
+                    self.forward_warnings(cx);
+                    return out;
                 }
                 for (input, n, p) in &it.feedback {
                     let v = self.pull(&(n.clone(), p.clone()), ctx, &node)?;
@@ -359,7 +361,16 @@ impl CompositeKernel {
             }
             self.keep(report);
         }
-        self.outputs(ctx, &node)
+        let out = self.outputs(ctx, &node);
+        self.forward_warnings(cx);
+        out
+    }
+
+    /// Passes the inner graph's warnings on as the instance's, prefixed with the stage.
+    fn forward_warnings(&mut self, cx: &mut EvalCx<'_>) {
+        for w in self.inner.take_warnings() {
+            cx.warn(format!("{}: {}", w.node, w.message));
+        }
     }
 
     fn keep(&mut self, r: FrameReport) {

@@ -69,10 +69,11 @@ pub struct ExchangeValue(Exchange);
 pub struct SolidIterate {
     state: State,
     relaxation: Relaxation,
+    iteration: usize,
 }
 
 /// A fluid iterate (None without fluid, or in stages that do nothing for this method).
-pub struct FluidValue(Option<Arc<MacGrid>>);
+pub struct FluidValue(Option<Arc<MacGrid>>, usize);
 
 fn get<'a, T: 'static>(v: &'a Value, port: &str) -> Result<&'a T, NodeError> {
     v.get::<T>().ok_or_else(|| NodeError::Input {
@@ -352,6 +353,7 @@ fn solid(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
         Value::new(SolidIterate {
             state: next,
             relaxation,
+            iteration: it.iteration,
         }),
     );
     Ok(())
@@ -380,7 +382,7 @@ fn rasterize(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
         }
         _ => None,
     };
-    cx.set("faces", Value::new(FluidValue(faces)));
+    cx.set("faces", Value::new(FluidValue(faces, solid.iteration)));
     Ok(())
 }
 
@@ -401,10 +403,10 @@ fn pressure(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
             let mut g = MacGrid::clone(g);
             let ps = ws
                 .stepper
-                .project(&mut g, step.h, &st, 0)
+                .project(&mut g, step.h, &st, faces.1)
                 .map_err(|e| failed(format!("frame {frame}: {e}")))?;
             ws.record(serde_json::json!({
-                "frame": frame, "cg_iterations": ps.iterations, "divergence": ps.divergence,
+                "frame": frame, "iteration": faces.1, "cg_iterations": ps.iterations, "divergence": ps.divergence,
                 "setup_seconds": ps.setup_seconds, "solve_seconds": ps.solve_seconds,
             }));
             Some(Arc::new(g))
@@ -413,7 +415,7 @@ fn pressure(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
         None if step.method == Coupling::OneWay => step.u_star.clone(),
         None => None,
     };
-    cx.set("fluid", Value::new(FluidValue(fluid)));
+    cx.set("fluid", Value::new(FluidValue(fluid, faces.1)));
     Ok(())
 }
 
