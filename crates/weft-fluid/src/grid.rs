@@ -164,6 +164,12 @@ impl Domain {
         })
     }
 
+    /// True when `p` lies in the domain's box (boundary included).
+    pub fn contains(&self, p: [f64; 3]) -> bool {
+        let size = self.size();
+        (0..3).all(|b| (0.0..=size[b]).contains(&(p[b] - self.origin[b])))
+    }
+
     /// Number of cells.
     pub fn cell_count(&self) -> usize {
         self.cells.iter().product()

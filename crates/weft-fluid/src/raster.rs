@@ -136,13 +136,8 @@ pub fn rasterize(grid: &mut MacGrid, samples: &[Sample], max_solid_fraction: f64
     // Accumulators per axis and face: Σ wV, Σ wVk, Σ wVk·v, Σ wV·v.
     let zeros = || [0, 1, 2].map(|a| vec![0.0; dom.face_count(a)]);
     let (mut vol, mut kk, mut mk, mut mv) = (zeros(), zeros(), zeros(), zeros());
-    let size = dom.size();
     for s in samples {
-        let inside = (0..3).all(|b| {
-            let x = s.position[b] - dom.origin[b];
-            x >= 0.0 && x <= size[b]
-        });
-        if !inside {
+        if !dom.contains(s.position) {
             stats.outside += 1;
             continue;
         }
@@ -204,12 +199,7 @@ pub fn add_impulse(
     impulse: [f64; 3],
     density: f64,
 ) -> bool {
-    let size = grid.domain.size();
-    let inside = (0..3).all(|b| {
-        let x = position[b] - grid.domain.origin[b];
-        x >= 0.0 && x <= size[b]
-    });
-    if !inside {
+    if !grid.domain.contains(position) {
         return false;
     }
     let cell = grid.domain.dx.powi(3);

@@ -64,6 +64,19 @@ pub enum Coupling {
     Newton,
 }
 
+impl Coupling {
+    /// Whether coupling iteration `iteration` (from 0), which changed the velocities by at
+    /// most `change` [m/s], ends the step: `Newton` needs a second iteration (the first has
+    /// nothing to compare against but the last step) and a change below `tolerance`; the
+    /// one-pass methods stop at once.
+    pub fn converged(self, iteration: usize, change: f64, tolerance: f64) -> bool {
+        match self {
+            Coupling::Newton => iteration > 0 && change < tolerance,
+            Coupling::Staggered | Coupling::OneWay => true,
+        }
+    }
+}
+
 /// Coupled step settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CoupledSettings {
@@ -330,7 +343,6 @@ impl CoupledStepper {
         out.samples.clear();
         out.lift.clear();
         out.outside = 0;
-        let size = seen.domain.size();
         let g = Vector3::from(settings.gravity);
         for pt in &out.points {
             let e = &elements[pt.element as usize];
@@ -341,7 +353,7 @@ impl CoupledStepper {
                 .map(|j| pt.weights[j] * v[pt.verts[j] as usize])
                 .sum();
             let p = [pos.x, pos.y, pos.z];
-            if !(0..3).all(|b| (0.0..=size[b]).contains(&(p[b] - seen.domain.origin[b]))) {
+            if !seen.domain.contains(p) {
                 out.outside += 1;
             }
             let u = Vector3::from(seen.velocity_at(p));
@@ -538,7 +550,9 @@ impl CoupledStepper {
             let du = fluid_change(&projected, &fluid);
             std::mem::swap(&mut fluid, &mut projected);
             stats.residuals.push([dv, du]);
-            if settings.method == Coupling::Staggered || (it > 0 && dv.max(du) < settings.tolerance)
+            if settings
+                .method
+                .converged(it, dv.max(du), settings.tolerance)
             {
                 stats.converged = true;
                 break;

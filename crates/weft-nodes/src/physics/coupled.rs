@@ -433,11 +433,11 @@ fn update(_: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
         (Some(a), Some(b)) => fluid_change(a, b),
         _ => 0.0,
     };
-    let converged = match step.method {
-        _ if fluid.is_none() => true,
-        Coupling::Newton => it.iteration > 0 && dv.max(du) < cx.params().f64("tolerance"),
-        Coupling::Staggered | Coupling::OneWay => true,
-    };
+    // Without a fluid nothing couples: one pass is the answer.
+    let converged = fluid.is_none()
+        || step
+            .method
+            .converged(it.iteration, dv.max(du), cx.params().f64("tolerance"));
     if !(dv.is_finite() && du.is_finite()) {
         return Err(failed(format!(
             "frame {}: coupling iteration {} produced a non-finite velocity",
