@@ -2,7 +2,8 @@
 //! through which hair and cloth exchange momentum with it.
 //!
 //! Velocities live on cell faces, pressure at cell centres. A step is: advect the velocity
-//! (semi-Lagrangian, [`advect`]); add body forces; project with the porous pressure system of
+//! (semi-Lagrangian, [`advect`]); optionally diffuse it (implicit viscosity, [`viscosity`]);
+//! add body forces; project with the porous pressure system of
 //! DESIGN §6 ([`pressure`]): per face a fluid fraction α = 1 − φ_s, a drag coefficient K per
 //! unit volume and a solid velocity v, which turn the usual projection (K = 0, α = 1: Batty et
 //! al. 2007) into one where the fluid is dragged towards the solid and the mixture flux
@@ -17,7 +18,9 @@ pub mod drag;
 pub mod grid;
 pub mod pressure;
 pub mod raster;
+pub mod viscosity;
 
 pub use drag::{DragParams, FluidProperties, Shape, drag_force, lift_force};
 pub use grid::{Axis, Boundaries, Boundary, Domain, FluidError, MacGrid};
 pub use pressure::{PressureSolve, PressureStats, Projection, ProjectionError, max_divergence};
+pub use viscosity::{Diffusion, DiffusionStats};

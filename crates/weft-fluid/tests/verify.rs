@@ -232,3 +232,48 @@ fn failed_and_refused_projections_leave_the_grid_unchanged() {
     assert!(e.to_string().contains("density"), "{e}");
     assert_eq!(g.vel, before);
 }
+
+/// Plane Poiseuille flow (optional viscosity): a channel between no-slip walls at x = 0 and
+/// x = L, periodic along y and z, driven by a uniform body force g along y. The steady state
+/// is u(x) = g x (L − x)/(2ν). Each step adds hg and diffuses implicitly, so with hν/L² ≫ 1 a
+/// few steps reach the discrete steady state, whose error is the wall ghost's O(Δx²): the
+/// largest error must fall by 4 × (order 2 ± 0.1) when the cells halve, and be below 1 % of
+/// the peak at 16 cells.
+#[test]
+fn plane_poiseuille_flow_converges_at_second_order() {
+    let (len, g, nu) = (0.1, 0.01, 1e-3);
+    let solve = |cells: usize| {
+        let b = Boundaries::periodic(&[Axis::Y, Axis::Z]);
+        let dx = len / cells as f64;
+        let d = Domain::new([0.0; 3], [len, 2.0 * dx, 2.0 * dx], dx, b, None).unwrap();
+        let mut grid = MacGrid::new(d);
+        let mut diff = weft_fluid::Diffusion::new(&grid);
+        let h = 1e3 * len * len / nu;
+        for _ in 0..6 {
+            grid.accelerate([0.0, g, 0.0], h);
+            diff.diffuse(
+                &mut grid,
+                nu,
+                h,
+                &PressureSolve {
+                    tolerance: 1e-13,
+                    max_iterations: 10_000,
+                },
+            )
+            .unwrap();
+        }
+        let dom = &grid.domain;
+        let mut err = 0.0f64;
+        for i in 0..cells {
+            let x = (i as f64 + 0.5) * dx;
+            let want = g * x * (len - x) / (2.0 * nu);
+            err = err.max((grid.vel[1][dom.face(1, i, 1, 1)] - want).abs());
+        }
+        err / (g * len * len / (8.0 * nu))
+    };
+    let (e16, e32) = (solve(16), solve(32));
+    let order = (e16 / e32).log2();
+    eprintln!("Poiseuille: relative error {e16:e} (16 cells), {e32:e} (32), order {order:.3}");
+    assert!(e16 < 0.01, "{e16}");
+    assert!((order - 2.0).abs() < 0.1, "order {order}");
+}

@@ -1,7 +1,8 @@
 //! The coupled solid–fluid solver as nodes (DESIGN §6): `solver.coupled` is a library
 //! subgraph — an iterating, stepped composite — whose stages are the `coupled.*` nodes below.
 //!
-//! Per frame (one time step h = 1/fps): **predict** advects the fluid and adds gravity (u*);
+//! Per frame (one time step h = 1/fps): **predict** advects the fluid (u*; gravity is in the
+//! hydrostatic pressure) and, when asked, diffuses it (viscosity);
 //! then, per coupling iteration, **forces** samples the solids in the fluid iterate (drag,
 //! pressure, lift), **solid** solves the implicit solid step with them (Aitken-relaxed in
 //! Newton mode), **rasterize** puts the solids' fractions, drag and velocities on the faces,
@@ -212,6 +213,7 @@ fn predict(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let ws = ws.for_scene(&s.compiled);
     let mut st = settings(&s.compiled);
     st.method = method;
+    st.viscosity = cx.params().bool("viscosity");
     st.pressure = PressureSolve {
         tolerance: cx.params().f64("pressure_tolerance"),
         max_iterations: cx.params().i64("pressure_max_iterations").max(1) as usize,
@@ -220,11 +222,15 @@ fn predict(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
         Some(g) => {
             let mut out = MacGrid::new(g.domain.clone());
             let t = std::time::Instant::now();
-            let cg = ws
+            let done = ws
                 .stepper
                 .predict(g, h, &st, &mut out)
                 .map_err(|e| failed(format!("frame {frame}: {e}")))?;
-            ws.record(serde_json::json!({"frame": frame, "seconds": t.elapsed().as_secs_f64(), "one_way_cg_iterations": cg}));
+            ws.record(serde_json::json!({
+                "frame": frame, "seconds": t.elapsed().as_secs_f64(),
+                "one_way_cg_iterations": done.projection_iterations,
+                "viscosity_cg_iterations": done.viscosity_iterations,
+            }));
             Some(Arc::new(out))
         }
         None => None,
@@ -524,11 +530,12 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
     )?;
     stage(
         r,
-        NodeSpec::new("coupled.predict", "coupled stage, once per step: advects the fluid and adds gravity (u*); one_way also projects it without solids")
+        NodeSpec::new("coupled.predict", "coupled stage, once per step: advects the fluid (u*; gravity is in the hydrostatic pressure), diffuses it when viscosity is on; one_way also projects it without solids")
             .input("state", "coupled", "the state at the previous frame")
             .input("scene", "scene", "the scene at this frame (attachment targets)")
             .output("step", "coupled_step", "the step's start")
             .param(method("newton"))
+            .param(ParamSpec::bool("viscosity", false).doc("viscous diffusion of the fluid after advection (implicit, nu = viscosity/density from the Fluid SEC); off: inviscid, as water and air are at hair and cloth scales"))
             .param(ParamSpec::float("pressure_tolerance", 1e-8).gt(0.0).unit("1/s").doc("one_way: divergence tolerance of its projection"))
             .param(ParamSpec::int("pressure_max_iterations", 2000).ge(1.0).doc("one_way: CG iteration limit of its projection")),
         predict,
