@@ -145,8 +145,11 @@ fn flag_wind_swings_downstream_and_leaves_a_wake() {
 
 /// hair_underwater: the roots follow the turning head exactly (to rounding), the strands keep
 /// their segment lengths within 0.1 %, the current carries the hair downstream (+x), and the
-/// water stays a 0.15 m/s current (largest speed within 10 % of it: the hair is too sparse
-/// to change it much, and nothing may blow up).
+/// head is an obstacle in the 0.15 m/s current: the water speeds up round it (largest speed
+/// above 1.15 × the current; potential flow round a sphere peaks at 1.5 ×, the
+/// staircase sphere and the hair change it; measured 1.55 × at frame 1, settling to 1.30 ×
+/// by frame 12) without blowing up (below 1.8 ×), and 25 cm behind the head's centre the
+/// wake is slower than the current (below 0.95 ×; measured 0.89 × at frame 12).
 #[test]
 fn hair_underwater_drifts_with_the_current() {
     let vertex = |i: u32| {
@@ -157,7 +160,8 @@ fn hair_underwater_drifts_with_the_current() {
         "hair_underwater.json",
         serde_json::json!({"a": vertex(5), "b": vertex(6), "root": vertex(0)}),
         serde_json::json!({"a": "a.position", "b": "b.position", "root": "root.position",
-                           "center": "center.centroid", "max_speed": "probe.max_speed"}),
+                           "center": "center.centroid", "max_speed": "probe.max_speed",
+                           "wake": "probe.velocity"}),
     );
     let rest = dist(vec3_at(&mut g, "a", 0), vec3_at(&mut g, "b", 0));
     let r0 = vec3_at(&mut g, "root", 0);
@@ -172,8 +176,13 @@ fn hair_underwater_drifts_with_the_current() {
         let radial = |p: [f64; 3]| (p[0] * p[0] + p[2] * p[2]).sqrt();
         assert!((radial(r) - radial(r0)).abs() < 1e-12);
         let m = f64_at(&mut g, "max_speed", frame);
-        assert!((m / 0.15 - 1.0).abs() < 0.1, "frame {frame}: speed {m}");
+        assert!(
+            m > 1.15 * 0.15 && m < 1.8 * 0.15,
+            "frame {frame}: speed {m}"
+        );
     }
+    let wake = vec3_at(&mut g, "wake", 12)[0];
+    assert!(wake < 0.95 * 0.15, "wake {wake} m/s");
     let c = vec3_at(&mut g, "center", 12);
     assert!(c[0] - c0[0] > 0.02, "hair centroid {c:?} from {c0:?}");
 }

@@ -16,11 +16,13 @@
 pub mod advect;
 pub mod drag;
 pub mod grid;
+pub mod obstacle;
 pub mod pressure;
 pub mod raster;
 pub mod viscosity;
 
 pub use drag::{DragParams, FluidProperties, Shape, drag_force, lift_force};
 pub use grid::{Axis, Boundaries, Boundary, Domain, FluidError, MacGrid};
+pub use obstacle::SolidFace;
 pub use pressure::{PressureSolve, PressureStats, Projection, ProjectionError, max_divergence};
 pub use viscosity::{Diffusion, DiffusionStats};

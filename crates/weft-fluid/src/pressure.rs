@@ -70,7 +70,7 @@ pub enum ProjectionError {
         /// The tolerance asked for.
         tolerance: f64,
     },
-    /// Bad settings or a bad field (negative drag, fluid fraction outside (0, 1]).
+    /// Bad settings or a bad field (negative drag, fluid fraction outside [0, 1]).
     #[error(transparent)]
     Fluid(#[from] FluidError),
 }
@@ -243,10 +243,10 @@ impl Projection {
             .into());
         }
         for a in 0..3 {
-            if let Some(x) = grid.alpha[a].iter().find(|x| !(**x > 0.0 && **x <= 1.0)) {
+            if let Some(x) = grid.alpha[a].iter().find(|x| !(**x >= 0.0 && **x <= 1.0)) {
                 return Err(FluidError::Parameter {
                     name: "fluid fraction",
-                    message: format!("must be in (0, 1], got {x}"),
+                    message: format!("must be in [0, 1], got {x}"),
                 }
                 .into());
             }
@@ -266,6 +266,11 @@ impl Projection {
         // Face quantities: ũ, the coefficient αβh/Δx², and the flux F̃ = αũ + (1 − α)v.
         let face = |g: &MacGrid, a: usize, f: usize| {
             let (al, k, v, u) = (g.alpha[a][f], g.drag[a][f], g.solid_vel[a][f], g.vel[a][f]);
+            if al == 0.0 {
+                // An obstacle face: no fluid, the flux is the obstacle's, the pressure has no
+                // hold on it (and what velocity the face shows is the obstacle's).
+                return (v, 0.0, v);
+            }
             let den = rho * al + h * k;
             let ut = (rho * al * u + h * k * v) / den;
             let beta = al / den;

@@ -13,7 +13,8 @@
 //! applies equals the total on the samples for a uniform flow: the coupling's momentum
 //! balance. Only the tensor's diagonal along each face's axis reaches the grid (a scalar per
 //! face, as the porous pressure system needs); the solid side keeps the full tensor.
-//! φ_s is capped at `max_solid_fraction` so every face keeps some fluid.
+//! φ_s is capped at `max_solid_fraction` so every face keeps some fluid. Faces already marked
+//! as obstacle faces (α = 0, [`crate::obstacle`]) are left as they are.
 
 use crate::grid::MacGrid;
 
@@ -128,7 +129,8 @@ pub fn sample_triangle(
     }
 }
 
-/// Clears the grid's solid fields and rasterizes `samples` into them, with the weights of
+/// Clears the grid's solid fields (all but obstacle faces, α = 0) and rasterizes `samples`
+/// into them, with the weights of
 /// [`MacGrid::face_stencil`].
 pub fn rasterize(grid: &mut MacGrid, samples: &[Sample], max_solid_fraction: f64) -> RasterStats {
     let dom = grid.domain.clone();
@@ -168,6 +170,11 @@ pub fn rasterize(grid: &mut MacGrid, samples: &[Sample], max_solid_fraction: f64
     let cell = dom.dx.powi(3);
     for a in 0..3 {
         for f in 0..dom.face_count(a) {
+            if grid.alpha[a][f] == 0.0 {
+                // An obstacle face (see [`crate::obstacle`]): the obstacle takes what the
+                // solids put there.
+                continue;
+            }
             let mut phi = vol[a][f] / cell;
             if phi > max_solid_fraction {
                 phi = max_solid_fraction;
@@ -205,7 +212,8 @@ pub fn add_impulse(
     let cell = grid.domain.dx.powi(3);
     for (a, j) in impulse.iter().enumerate() {
         for (f, w) in grid.face_stencil(a, position) {
-            if w != 0.0 {
+            // Obstacle faces (α = 0) hold no fluid: their share goes to the obstacle.
+            if w != 0.0 && grid.alpha[a][f] > 0.0 {
                 grid.vel[a][f] += w * j / (density * grid.alpha[a][f] * cell);
             }
         }

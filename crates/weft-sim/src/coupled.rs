@@ -27,12 +27,13 @@
 use nalgebra::Vector3;
 use std::time::Instant;
 use weft_fluid::advect::advect_velocity;
+use weft_fluid::obstacle::carve;
 use weft_fluid::raster::{
     RasterStats, Sample, add_impulse, rasterize, segment_lattice, triangle_lattice,
 };
 use weft_fluid::{
     Diffusion, DragParams, FluidProperties, MacGrid, PressureSolve, PressureStats, Projection,
-    lift_force,
+    SolidFace, lift_force,
 };
 use weft_solid::{Integrator, Settings, SolidSystem, State, StepError, StepStats, VertexDrag};
 
@@ -289,6 +290,8 @@ pub struct CoupledStepper {
     projection: Option<Projection>,
     advect_scratch: Option<MacGrid>,
     diffusion: Option<Diffusion>,
+    /// Faces inside kinematic obstacles for the coming step ([`Self::set_obstacles`]).
+    obstacles: Vec<SolidFace>,
     /// The pressure gradient on the faces (sampled like a velocity).
     gradient: Option<MacGrid>,
     samples: Vec<Sample>,
@@ -302,15 +305,25 @@ impl CoupledStepper {
             projection: Some(Projection::new(grid)),
             advect_scratch: None,
             diffusion: None,
+            obstacles: Vec::new(),
             gradient: None,
             samples: Vec::new(),
         })
     }
 
+    /// Sets the faces inside kinematic obstacles (colliders) for the coming steps
+    /// ([`crate::FluidSpec::obstacles`]); [`Self::predict`] carves them into u*, and every
+    /// later stage keeps them.
+    pub fn set_obstacles(&mut self, faces: &[SolidFace]) {
+        self.obstacles.clear();
+        self.obstacles.extend_from_slice(faces);
+    }
+
     /// **Predict** the fluid: `out` becomes `grid` advected over `h` (u*; gravity is in the
-    /// hydrostatic pressure, see the module doc), then diffused when `settings.viscosity`.
-    /// For [`Coupling::OneWay`] it is then projected as if no solid were there, and is the
-    /// fluid the solids see.
+    /// hydrostatic pressure, see the module doc), then diffused when `settings.viscosity`;
+    /// the solids' imprint is cleared and the obstacles are carved in. For
+    /// [`Coupling::OneWay`] it is then projected as if no hair or cloth were there, and is
+    /// the fluid the solids see.
     pub fn predict(
         &mut self,
         grid: &MacGrid,
@@ -333,12 +346,14 @@ impl CoupledStepper {
                 .map_err(CoupledError::Viscosity)?;
             done.viscosity_iterations = s.iterations;
         }
-        if settings.method != Coupling::OneWay {
-            return Ok(done);
-        }
         for a in 0..3 {
             out.alpha[a].iter_mut().for_each(|x| *x = 1.0);
             out.drag[a].iter_mut().for_each(|x| *x = 0.0);
+            out.solid_vel[a].iter_mut().for_each(|x| *x = 0.0);
+        }
+        carve(out, &self.obstacles);
+        if settings.method != Coupling::OneWay {
+            return Ok(done);
         }
         done.projection_iterations = self.project(out, h, settings, 0)?.iterations;
         Ok(done)
@@ -691,7 +706,9 @@ fn pressure_gradient(grid: &MacGrid, out: &mut MacGrid) {
                         c[a] = along;
                         grid.pressure[dom.cell(c[0], c[1], c[2])]
                     };
-                    let val = if m > 0 && m < na {
+                    let val = if grid.alpha[a][dom.face(a, i, j, k)] == 0.0 {
+                        0.0 // inside an obstacle: no fluid, no pressure force
+                    } else if m > 0 && m < na {
                         (cell(m) - cell(m - 1)) / dom.dx
                     } else if dom.boundaries.is_periodic(a) {
                         (cell(0) - cell(na - 1)) / dom.dx

@@ -3,9 +3,11 @@
 //! element has no fluid, and nothing is allocated for one.
 
 use crate::error::SimError;
+use nalgebra::Point3;
 use nalgebra::Vector3;
-use weft_fluid::{Boundaries, Boundary, Domain, FluidError, FluidProperties, MacGrid};
-use weft_scene::{DomainSide, ElementKind, Fluid, FluidDomain, SceneElement};
+use weft_fluid::obstacle::faces_inside_mesh;
+use weft_fluid::{Boundaries, Boundary, Domain, FluidError, FluidProperties, MacGrid, SolidFace};
+use weft_scene::{DomainSide, ElementKind, Fluid, FluidDomain, Geometry, SceneElement, Transform};
 
 /// A scene's fluid, before its grid is allocated.
 #[derive(Clone, Debug, PartialEq)]
@@ -18,6 +20,8 @@ pub struct FluidSpec {
     pub properties: FluidProperties,
     /// The current or wind [m/s]: the initial velocity and the inflow sides' velocity.
     pub flow: [f64; 3],
+    /// Scene indices of the colliders: obstacles in the fluid (their closed meshes).
+    pub colliders: Vec<usize>,
 }
 
 impl FluidSpec {
@@ -28,6 +32,42 @@ impl FluidSpec {
         g.set_velocity(|_| flow);
         g.apply_boundaries();
         g
+    }
+
+    /// The faces inside the scene's colliders at the end of a step of `h` seconds (`scene`
+    /// holds them placed there), each with its collider's velocity: the rigid motion from
+    /// `before` (the transforms at the step's start) to the current transform, or at rest for
+    /// a collider without transforms. Cleared and refilled into `out`.
+    pub fn obstacles(
+        &self,
+        scene: &[SceneElement],
+        before: &[Option<Transform>],
+        h: f64,
+        out: &mut Vec<SolidFace>,
+    ) {
+        out.clear();
+        for &c in &self.colliders {
+            let Some(e) = scene.get(c) else { continue };
+            let Geometry::Mesh(m) = &*e.geometry else {
+                continue;
+            };
+            // x(t) = T(t)·X: the face at world p came from T₀T₁⁻¹p at the step's start.
+            let motion = match (before.get(c).copied().flatten(), e.transform) {
+                (Some(t0), Some(t1)) if h > 0.0 => Some(t0 * t1.inverse()),
+                _ => None,
+            };
+            faces_inside_mesh(&self.domain, &m.positions, &m.triangles, |a, f, p| {
+                let velocity = motion.map_or(0.0, |back| {
+                    let p1 = Point3::from(p);
+                    (p1 - back.transform_point(&p1))[a] / h
+                });
+                out.push(SolidFace {
+                    axis: a as u8,
+                    face: f as u32,
+                    velocity,
+                });
+            });
+        }
     }
 }
 
@@ -136,5 +176,11 @@ pub(crate) fn fluid_spec(
             viscosity: fluid.viscosity,
         },
         flow: sec.flow,
+        colliders: scene
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| c.kind == ElementKind::Collider)
+            .map(|(i, _)| i)
+            .collect(),
     }))
 }

@@ -519,3 +519,111 @@ fn a_light_strand_in_strong_drag_staggered_oscillates_newton_holds() {
     let peak = newton.iter().cloned().fold(0.0, f64::max);
     assert!((peak / terminal - 1.0).abs() < 0.03, "{peak} vs {terminal}");
 }
+
+/// Colliders are obstacles in the fluid: `FluidSpec::obstacles` finds the faces inside a
+/// collider's closed mesh (those within the sphere's radius less the faceting, none beyond
+/// it) and gives each the collider's rigid velocity at that face: for a turn by θ about the
+/// y axis through the centre over h, (p − R(−θ)p)/h, which for small θ is ω × r. Tolerance:
+/// exact rigid motion, to rounding (1e-12 m/s).
+#[test]
+fn colliders_are_obstacles_moving_with_their_transform() {
+    use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+    use std::sync::Arc;
+    use weft_scene::procedural::{sphere, strands_on_sphere};
+    use weft_scene::{ElementKind, FluidDomain, Geometry, SceneElement};
+    let centre = [0.0, 0.5, 0.0];
+    let place = |angle: f64| {
+        Isometry3::from_parts(
+            Translation3::new(centre[0], centre[1], centre[2]),
+            UnitQuaternion::from_axis_angle(&nalgebra::Vector3::y_axis(), angle),
+        )
+    };
+    let (before, after, h) = (place(0.0), place(0.02), 0.04);
+    let mut mesh = sphere([0.0; 3], 0.1, 16, 32);
+    for p in &mut mesh.positions {
+        let q = after.transform_point(&nalgebra::Point3::from(*p));
+        *p = [q.x, q.y, q.z];
+    }
+    let mut head = SceneElement::new("head", ElementKind::Collider, Geometry::Mesh(mesh));
+    head.transform = Some(after);
+    let hair = SceneElement::new(
+        "hair",
+        ElementKind::Hair,
+        Geometry::Curves(strands_on_sphere(centre, 0.1, 3, 3, 0.1, 60.0)),
+    );
+    let mut water = SceneElement::new("water", ElementKind::FluidDomain, Geometry::None);
+    water.secs.insert(FluidDomain {
+        padding: 0.05,
+        cell_size: 0.02,
+        ..Default::default()
+    });
+    let tree = BehaviorTree {
+        behaviors: vec![Arc::new(RodMaterial)],
+    };
+    let scene = [hair, head, water];
+    let c = compile(&scene, &tree).unwrap();
+    let f = c.fluid.as_ref().unwrap();
+    assert_eq!(f.colliders, [1]);
+    let mut faces = Vec::new();
+    f.obstacles(&scene, &[None, Some(before), None], h, &mut faces);
+    assert!(faces.len() > 300, "{}", faces.len());
+    let back = before * after.inverse();
+    for s in &faces {
+        let a = s.axis as usize;
+        let d = &f.domain;
+        let dims = d.face_dims(a);
+        let fi = s.face as usize;
+        let idx = [
+            fi % dims[0],
+            (fi / dims[0]) % dims[1],
+            fi / (dims[0] * dims[1]),
+        ];
+        let p = d.face_position(a, idx);
+        let r =
+            ((p[0] - centre[0]).powi(2) + (p[1] - centre[1]).powi(2) + (p[2] - centre[2]).powi(2))
+                .sqrt();
+        assert!(r < 0.1, "face at {p:?}, {r} from the centre");
+        let p1 = nalgebra::Point3::from(p);
+        let want = (p1 - back.transform_point(&p1))[a] / h;
+        assert!(
+            (s.velocity - want).abs() < 1e-12,
+            "{} vs {want}",
+            s.velocity
+        );
+    }
+    // A collider at rest (no transform before): its faces do not move.
+    f.obstacles(&scene, &[None, None, None], h, &mut faces);
+    assert!(faces.iter().all(|s| s.velocity == 0.0));
+    // Every face well inside (0.08 m, below the faceting's 0.1·cos(π/16)) is found.
+    let inside = faces.len();
+    let found: std::collections::HashSet<(u8, u32)> =
+        faces.iter().map(|s| (s.axis, s.face)).collect();
+    let d = &f.domain;
+    let mut deep = 0;
+    for a in 0..3 {
+        let dims = d.face_dims(a);
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    let p = d.face_position(a, [i, j, k]);
+                    let r = ((p[0] - centre[0]).powi(2)
+                        + (p[1] - centre[1]).powi(2)
+                        + (p[2] - centre[2]).powi(2))
+                    .sqrt();
+                    if r < 0.08 {
+                        deep += 1;
+                        assert!(
+                            found.contains(&(a as u8, d.face(a, i, j, k) as u32)),
+                            "{p:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+    assert!(
+        deep > 0 && deep <= inside,
+        "{deep} deep faces, {inside} found"
+    );
+    eprintln!("collider: {inside} faces inside, {deep} within 0.08 m");
+}

@@ -218,10 +218,13 @@ fn predict(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
         tolerance: cx.params().f64("pressure_tolerance"),
         max_iterations: cx.params().i64("pressure_max_iterations").max(1) as usize,
     };
-    let u_star = match &s.fluid {
-        Some(g) => {
+    let u_star = match (&s.fluid, &s.compiled.fluid) {
+        (Some(g), Some(spec)) => {
             let mut out = MacGrid::new(g.domain.clone());
             let t = std::time::Instant::now();
+            let mut obstacles = Vec::new();
+            spec.obstacles(&scene, &s.sim.transforms, h, &mut obstacles);
+            ws.stepper.set_obstacles(&obstacles);
             let done = ws
                 .stepper
                 .predict(g, h, &st, &mut out)
@@ -230,10 +233,11 @@ fn predict(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
                 "frame": frame, "seconds": t.elapsed().as_secs_f64(),
                 "one_way_cg_iterations": done.projection_iterations,
                 "viscosity_cg_iterations": done.viscosity_iterations,
+                "obstacle_faces": obstacles.len(),
             }));
             Some(Arc::new(out))
         }
-        None => None,
+        _ => None,
     };
     cx.set(
         "step",
