@@ -12,12 +12,17 @@ use weft_graph::{Context, Graph, Registry, load_str};
 /// Arguments of `weft bench`.
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {
-    /// Suite to run: `graph` (engine overhead), `solid` (cloth and hair solver) or `fluid`
-    /// (pressure solve against memory bandwidth).
+    /// Suite to run: `graph` (engine overhead), `solid` (cloth and hair solver), `fluid`
+    /// (pressure solve against memory bandwidth) or `accuracy` (error against step size and
+    /// wall time per method, and stability maps; writes CSV and JSON into `--out`).
     suite: String,
-    /// Fewer repetitions (for CI smoke runs).
+    /// Fewer repetitions (for CI smoke runs); `accuracy` then also fails (exit 1) when a
+    /// fact theory fixes does not hold.
     #[arg(long)]
     quick: bool,
+    /// Directory for the sweep suites' outputs (CSV, JSON).
+    #[arg(long, value_name = "DIR", default_value = "bench-out")]
+    out: std::path::PathBuf,
     /// Also write the results as JSON to this file.
     #[arg(long, value_name = "FILE")]
     json: Option<std::path::PathBuf>,
@@ -188,8 +193,23 @@ pub fn run(reg: &Arc<Registry>, a: BenchArgs) -> ExitCode {
                 return ExitCode::from(1);
             }
         },
+        "accuracy" => {
+            return match crate::bench_accuracy::suite(a.quick, &a.out) {
+                Ok(s) if a.quick && s.checks.iter().any(|(_, ok)| !ok) => {
+                    eprintln!("error: a fact theory fixes did not hold (see FAIL above)");
+                    ExitCode::from(1)
+                }
+                Ok(_) => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    ExitCode::from(1)
+                }
+            };
+        }
         other => {
-            eprintln!("error: unknown bench suite '{other}' (suites: graph, solid, fluid)");
+            eprintln!(
+                "error: unknown bench suite '{other}' (suites: graph, solid, fluid, accuracy)"
+            );
             return ExitCode::from(2);
         }
     };

@@ -7,10 +7,13 @@
 #![warn(missing_docs)]
 
 mod bench;
+mod bench_accuracy;
 mod bench_fluid;
 mod bench_solid;
+mod charts;
 mod nodes;
 mod run;
+mod sweep;
 
 use clap::{Parser, Subcommand};
 use std::ffi::OsString;

@@ -225,3 +225,53 @@ fn bench_graph_quick_runs() {
     let o = weft(&["bench", "nope"], &root());
     assert_eq!(o.status.code(), Some(2));
 }
+
+/// `weft bench accuracy --quick` (the CI run): exits 0 only when what theory fixes holds
+/// (first-order convergence within 0.8–1.2 for every method; explicit blows up above 1.2 ×
+/// its stable step 2/ω and holds below 0.5 × it; newton never blows up), and writes every run
+/// as CSV and JSON and the three charts as PNG and SVG.
+#[test]
+fn bench_accuracy_quick_asserts_theory_and_writes_runs_and_charts() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("bench");
+    let o = weft(
+        &[
+            "bench",
+            "accuracy",
+            "--quick",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &root(),
+    );
+    assert!(
+        o.status.success(),
+        "{}\n{}",
+        text(&o.stdout),
+        text(&o.stderr)
+    );
+    let csv = std::fs::read_to_string(out.join("accuracy.csv")).unwrap();
+    assert!(csv.starts_with("scene,method,h,stiffness,error,seconds,steps,status,pareto\n"));
+    // Quick: 4 stiffnesses (three mapped and the convergence one) × 3 methods × 5 steps.
+    assert_eq!(csv.lines().count(), 1 + 4 * 3 * 5);
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("accuracy.json")).unwrap()).unwrap();
+    let checks = json["summary"]["checks"].as_array().unwrap();
+    assert!(checks.len() >= 6);
+    assert!(checks.iter().all(|c| c[1] == true), "{checks:?}");
+    for chart in [
+        "accuracy_error_time",
+        "accuracy_error_step",
+        "accuracy_stability",
+    ] {
+        for ext in ["png", "svg"] {
+            let p = out.join(format!("{chart}.{ext}"));
+            assert!(
+                std::fs::metadata(&p)
+                    .map(|m| m.len() > 1000)
+                    .unwrap_or(false),
+                "{p:?}"
+            );
+        }
+    }
+}

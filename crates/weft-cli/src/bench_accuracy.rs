@@ -1,0 +1,206 @@
+//! `weft bench accuracy`: the solid integrators' speed against their accuracy, and where each
+//! is stable (see [`crate::sweep`] for the scenes, references and statuses).
+//!
+//! Two sweeps of the pendulum, every method (`explicit`, `linearized`, `newton`) in each:
+//! - **convergence**: a stiff rod (k = 10⁶ N, fastest period 6.3 ms) over step sizes from
+//!   1/25 s to 1/3200 s, the observed order fitted on the steps at or below 1/200 s;
+//! - **stability map**: stiffness 10²…10⁷ N × the same steps, each cell stable, inaccurate or
+//!   blown up.
+//!
+//! Theory fixes what `--quick` asserts: implicit Euler (`newton`, and `linearized`, which
+//! differs from it at second order) and symplectic Euler (`explicit`, where it is stable)
+//! converge at first order; symplectic Euler is stable only below h = 2/ω (ω = √k here), so
+//! it must blow up above 1.2 × that step and hold below 0.5 × it; `newton` never blows up.
+
+use crate::sweep::{self, Run, Status};
+use serde::Serialize;
+use std::path::Path;
+
+/// What the sweep found.
+#[derive(Serialize)]
+pub struct Summary {
+    /// Observed order of convergence per method (stiff rod, small steps).
+    pub orders: Vec<(String, f64)>,
+    /// Facts checked against theory (each with whether it held).
+    pub checks: Vec<(String, bool)>,
+}
+
+fn steps(quick: bool) -> Vec<f64> {
+    let n: &[f64] = if quick {
+        &[25.0, 100.0, 400.0, 1600.0, 3200.0]
+    } else {
+        &[25.0, 50.0, 100.0, 200.0, 400.0, 800.0, 1600.0, 3200.0]
+    };
+    n.iter().map(|n| 1.0 / n).collect()
+}
+
+/// Runs both sweeps, writes `accuracy.csv` and `accuracy.json` into `out`, prints the orders
+/// and the stability map, and returns the summary.
+pub fn suite(quick: bool, out: &Path) -> Result<Summary, String> {
+    let hs = steps(quick);
+    let stiff = 1e6;
+    let stiffnesses: &[f64] = if quick {
+        &[1e3, 1e5, 1e7]
+    } else {
+        &[1e2, 1e3, 1e4, 1e5, 1e6, 1e7]
+    };
+    let mut runs: Vec<Run> = Vec::new();
+    let mut ks: Vec<f64> = stiffnesses.to_vec();
+    if !ks.contains(&stiff) {
+        ks.push(stiff);
+    }
+    for &k in &ks {
+        let reference = sweep::pendulum_reference(k);
+        for &m in &sweep::METHODS {
+            for &h in &hs {
+                runs.push(sweep::pendulum_run(m, h, k, reference));
+            }
+        }
+    }
+    let mut orders = Vec::new();
+    println!("pendulum, k = {stiff:e} N: error at 1 s against RK4 [m]");
+    println!("| h [s] | {} |", sweep::METHODS.map(|m| m.1).join(" | "));
+    println!("|---:|{}", "---:|".repeat(3));
+    for &h in &hs {
+        let cells: Vec<String> = sweep::METHODS
+            .iter()
+            .map(|m| {
+                runs.iter()
+                    .find(|r| r.stiffness == stiff && r.method == m.1 && (r.h - h).abs() < 1e-12)
+                    .map_or("-".into(), |r| {
+                        format!("{:.3e} ({:.1} ms)", r.error, r.seconds * 1e3)
+                    })
+            })
+            .collect();
+        println!("| 1/{:.0} | {} |", 1.0 / h, cells.join(" | "));
+    }
+    for m in &sweep::METHODS {
+        let pts: Vec<(f64, f64)> = runs
+            .iter()
+            .filter(|r| {
+                r.stiffness == stiff
+                    && r.method == m.1
+                    && r.h <= 1.0 / 200.0 + 1e-12
+                    && r.status != Status::BlownUp
+            })
+            .map(|r| (r.h, r.error))
+            .collect();
+        let order = if pts.len() >= 2 {
+            sweep::fitted_order(&pts)
+        } else {
+            f64::NAN
+        };
+        orders.push((m.1.to_string(), order));
+    }
+    println!(
+        "\nobserved orders: {}",
+        orders
+            .iter()
+            .map(|(m, o)| format!("{m} {o:.3}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    println!("\nstability map (S stable, I inaccurate > 1 cm, X blown up): rows k [N], columns h");
+    for m in &sweep::METHODS {
+        println!("{}:", m.1);
+        for &k in stiffnesses {
+            let row: String = hs
+                .iter()
+                .map(|&h| {
+                    match runs
+                        .iter()
+                        .find(|r| r.stiffness == k && r.method == m.1 && (r.h - h).abs() < 1e-12)
+                        .map(|r| r.status)
+                    {
+                        Some(Status::Stable) => 'S',
+                        Some(Status::Inaccurate) => 'I',
+                        Some(Status::BlownUp) => 'X',
+                        None => '?',
+                    }
+                })
+                .collect();
+            println!("  k = {k:7.0e}  {row}");
+        }
+    }
+    // What theory fixes.
+    let mut checks = Vec::new();
+    for (m, o) in &orders {
+        checks.push((
+            format!("{m}: first order (observed {o:.3}, band 0.8–1.2)"),
+            (0.8..=1.2).contains(o),
+        ));
+    }
+    let explicit = |pred: &dyn Fn(&Run) -> bool| {
+        runs.iter()
+            .filter(|r| r.method == "explicit" && pred(r))
+            .collect::<Vec<_>>()
+    };
+    let above = explicit(&|r| r.h > 1.2 * 2.0 / r.stiffness.sqrt());
+    checks.push((
+        format!("explicit blows up above 1.2 × 2/ω ({} runs)", above.len()),
+        !above.is_empty() && above.iter().all(|r| r.status == Status::BlownUp),
+    ));
+    let below = explicit(&|r| r.h < 0.5 * 2.0 / r.stiffness.sqrt());
+    checks.push((
+        format!("explicit holds below 0.5 × 2/ω ({} runs)", below.len()),
+        !below.is_empty() && below.iter().all(|r| r.status != Status::BlownUp),
+    ));
+    checks.push((
+        "newton never blows up".into(),
+        runs.iter()
+            .filter(|r| r.method == "newton")
+            .all(|r| r.status != Status::BlownUp),
+    ));
+    println!();
+    for (c, ok) in &checks {
+        println!("{} {c}", if *ok { "ok  " } else { "FAIL" });
+    }
+    std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
+    let summary = Summary { orders, checks };
+    let json = serde_json::json!({"runs": runs, "summary": summary, "inaccurate_above_m": sweep::INACCURATE});
+    for (name, text) in [
+        ("accuracy.csv", sweep::csv(&runs)),
+        (
+            "accuracy.json",
+            serde_json::to_string_pretty(&json).unwrap_or_default(),
+        ),
+    ] {
+        let p = out.join(name);
+        weft_graph::atomic_write(&p, text.as_bytes())
+            .map_err(|e| format!("cannot write {}: {e}", p.display()))?;
+    }
+    let stiff_runs: Vec<Run> = runs
+        .iter()
+        .filter(|r| r.stiffness == stiff)
+        .cloned()
+        .collect();
+    crate::charts::error_vs_time(
+        &stiff_runs,
+        "Pendulum (k = 1e6 N): error at 1 s against wall time",
+        &out.join("accuracy_error_time"),
+    )?;
+    crate::charts::error_vs_step(
+        &stiff_runs,
+        &summary.orders,
+        "Pendulum (k = 1e6 N): error at 1 s against step size",
+        &out.join("accuracy_error_step"),
+    )?;
+    let map_runs: Vec<Run> = runs
+        .iter()
+        .filter(|r| stiffnesses.contains(&r.stiffness))
+        .cloned()
+        .collect();
+    crate::charts::stability_map(
+        &map_runs,
+        |r| r.stiffness,
+        "rod stiffness k [N]",
+        "Pendulum stability: green stable, orange error > 1 cm, red blown up",
+        &out.join("accuracy_stability"),
+    )?;
+    println!(
+        "\nwrote {} runs and charts (PNG, SVG) to {}",
+        runs.len(),
+        out.display()
+    );
+    Ok(summary)
+}

@@ -1,0 +1,313 @@
+//! Charts of the sweeps (plotters), each written as PNG and SVG: error against wall time with
+//! the Pareto front marked, error against step size with the fitted orders, and stability
+//! maps. Text is set in the bundled DejaVu Sans (assets/, Bitstream Vera licence), so the
+//! charts need no system fonts.
+
+use crate::sweep::{Run, Status, pareto_front};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::path::Path;
+
+const FONT: &str = "sans-serif";
+const SIZE: (u32, u32) = (760, 520);
+
+fn method_color(m: &str) -> RGBColor {
+    match m {
+        "explicit" => RGBColor(214, 39, 40),
+        "linearized" => RGBColor(31, 119, 180),
+        _ => RGBColor(44, 160, 44),
+    }
+}
+
+fn register_font() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        // The bundled font is a valid TTF; if it were not, text would be missing, not wrong.
+        let _ = plotters::style::register_font(
+            FONT,
+            FontStyle::Normal,
+            include_bytes!("../assets/DejaVuSans.ttf"),
+        );
+    });
+}
+
+fn err<E: std::fmt::Debug>(e: E) -> String {
+    format!("chart: {e:?}")
+}
+
+/// Draws with `$draw(&root, args…)` into `stem`.png and `stem`.svg (one generic drawing
+/// function, two backends).
+macro_rules! both {
+    ($stem:expr, $size:expr, $draw:ident ( $($arg:expr),* )) => {{
+        register_font();
+        let png = $stem.with_extension("png");
+        {
+            let root = BitMapBackend::new(&png, $size).into_drawing_area();
+            $draw(&root, $($arg),*)?;
+            root.present().map_err(err)?;
+        }
+        let svg = $stem.with_extension("svg");
+        let root = SVGBackend::new(&svg, $size).into_drawing_area();
+        $draw(&root, $($arg),*)?;
+        root.present().map_err(err)?;
+        Ok(())
+    }};
+}
+
+fn log_range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (lo, hi) = vals
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(v), b.max(v)));
+    if lo.is_finite() && hi > 0.0 {
+        (lo / 2.0, hi * 2.0)
+    } else {
+        (1e-6, 1.0)
+    }
+}
+
+/// Error against wall time, log–log, one curve per method (runs of one stiffness, in step
+/// order), the Pareto front ringed.
+pub fn error_vs_time(runs: &[Run], title: &str, stem: &Path) -> Result<(), String> {
+    both!(stem, SIZE, error_vs_time_on(runs, title))
+}
+
+fn error_vs_time_on<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    runs: &[Run],
+    title: &str,
+) -> Result<(), String> {
+    let methods = methods(runs);
+    let front = pareto_front(runs);
+    let (x0, x1) = log_range(runs.iter().map(|r| r.seconds));
+    let (y0, y1) = log_range(runs.iter().map(|r| r.error));
+    {
+        root.fill(&WHITE).map_err(err)?;
+        let mut chart = ChartBuilder::on(root)
+            .caption(title, (FONT, 18))
+            .margin(12)
+            .x_label_area_size(42)
+            .y_label_area_size(64)
+            .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
+            .map_err(err)?;
+        chart
+            .configure_mesh()
+            .x_desc("wall time [s]")
+            .y_desc("error [m]")
+            .label_style((FONT, 12))
+            .x_label_formatter(&|v| format!("{v:.0e}"))
+            .y_label_formatter(&|v| format!("{v:.0e}"))
+            .draw()
+            .map_err(err)?;
+        for m in &methods {
+            let c = method_color(m);
+            let pts: Vec<(f64, f64)> = runs
+                .iter()
+                .filter(|r| r.method == *m && r.error.is_finite() && r.seconds > 0.0)
+                .map(|r| (r.seconds, r.error))
+                .collect();
+            chart
+                .draw_series(LineSeries::new(pts.clone(), c.stroke_width(2)))
+                .map_err(err)?
+                .label(m.to_string())
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2))
+                });
+            chart
+                .draw_series(pts.iter().map(|p| Circle::new(*p, 3, c.filled())))
+                .map_err(err)?;
+        }
+        chart
+            .draw_series(
+                runs.iter()
+                    .zip(&front)
+                    .filter(|(r, f)| **f && r.seconds > 0.0)
+                    .map(|(r, _)| Circle::new((r.seconds, r.error), 7, BLACK.stroke_width(1))),
+            )
+            .map_err(err)?
+            .label("Pareto front")
+            .legend(|(x, y)| Circle::new((x + 9, y), 6, BLACK.stroke_width(1)));
+        chart
+            .configure_series_labels()
+            .label_font((FONT, 12))
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .draw()
+            .map_err(err)?;
+        Ok(())
+    }
+}
+
+/// Error against step size, log–log, one curve per method with its fitted order in the
+/// legend.
+pub fn error_vs_step(
+    runs: &[Run],
+    orders: &[(String, f64)],
+    title: &str,
+    stem: &Path,
+) -> Result<(), String> {
+    both!(stem, SIZE, error_vs_step_on(runs, orders, title))
+}
+
+fn error_vs_step_on<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    runs: &[Run],
+    orders: &[(String, f64)],
+    title: &str,
+) -> Result<(), String> {
+    let methods = methods(runs);
+    let (x0, x1) = log_range(runs.iter().map(|r| r.h));
+    let (y0, y1) = log_range(runs.iter().map(|r| r.error));
+    {
+        root.fill(&WHITE).map_err(err)?;
+        let mut chart = ChartBuilder::on(root)
+            .caption(title, (FONT, 18))
+            .margin(12)
+            .x_label_area_size(42)
+            .y_label_area_size(64)
+            .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
+            .map_err(err)?;
+        chart
+            .configure_mesh()
+            .x_desc("step h [s]")
+            .y_desc("error [m]")
+            .label_style((FONT, 12))
+            .x_label_formatter(&|v| format!("{v:.0e}"))
+            .y_label_formatter(&|v| format!("{v:.0e}"))
+            .draw()
+            .map_err(err)?;
+        for m in &methods {
+            let c = method_color(m);
+            let mut pts: Vec<(f64, f64)> = runs
+                .iter()
+                .filter(|r| r.method == *m && r.error.is_finite())
+                .map(|r| (r.h, r.error))
+                .collect();
+            pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let order = orders
+                .iter()
+                .find(|(n, _)| n == m)
+                .map_or(f64::NAN, |(_, o)| *o);
+            chart
+                .draw_series(LineSeries::new(pts.clone(), c.stroke_width(2)))
+                .map_err(err)?
+                .label(format!("{m} (order {order:.2})"))
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2))
+                });
+            chart
+                .draw_series(pts.iter().map(|p| Circle::new(*p, 3, c.filled())))
+                .map_err(err)?;
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::LowerRight)
+            .label_font((FONT, 12))
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .draw()
+            .map_err(err)?;
+        Ok(())
+    }
+}
+
+/// Stability maps: one panel per method, step size across and `param` (named `label`) up,
+/// each cell green (stable), orange (inaccurate) or red (blown up).
+pub fn stability_map(
+    runs: &[Run],
+    param: fn(&Run) -> f64,
+    label: &str,
+    title: &str,
+    stem: &Path,
+) -> Result<(), String> {
+    let size = (300 * methods(runs).len().max(1) as u32 + 40, 420);
+    both!(stem, size, stability_map_on(runs, param, label, title))
+}
+
+fn stability_map_on<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    runs: &[Run],
+    param: fn(&Run) -> f64,
+    label: &str,
+    title: &str,
+) -> Result<(), String> {
+    let methods = methods(runs);
+    let mut hs: Vec<f64> = runs.iter().map(|r| r.h).collect();
+    hs.sort_by(|a, b| b.total_cmp(a));
+    hs.dedup_by(|a, b| (*a - *b).abs() <= 1e-12 * b.abs());
+    let mut ps: Vec<f64> = runs.iter().map(param).collect();
+    ps.sort_by(f64::total_cmp);
+    ps.dedup();
+    let index = |v: f64, of: &[f64]| of.iter().position(|x| (x - v).abs() <= 1e-12 * x.abs());
+    {
+        root.fill(&WHITE).map_err(err)?;
+        let root = root.titled(title, (FONT, 18)).map_err(err)?;
+        let panels = root.split_evenly((1, methods.len().max(1)));
+        for (panel, m) in panels.iter().zip(&methods) {
+            let mut chart = ChartBuilder::on(panel)
+                .caption(*m, (FONT, 15))
+                .margin(8)
+                .x_label_area_size(48)
+                .y_label_area_size(56)
+                .build_cartesian_2d(
+                    // `a..b` segmented has a segment per value in a..=b.
+                    (0..hs.len().saturating_sub(1)).into_segmented(),
+                    (0..ps.len().saturating_sub(1)).into_segmented(),
+                )
+                .map_err(err)?;
+            // Segmented axes: each cell is a segment, labelled at its centre.
+            let centre = |v: &SegmentValue<usize>| match v {
+                SegmentValue::CenterOf(i) => Some(*i),
+                _ => None,
+            };
+            chart
+                .configure_mesh()
+                .disable_mesh()
+                .x_desc("step h [s]")
+                .y_desc(label)
+                .label_style((FONT, 10))
+                .x_labels(hs.len())
+                .y_labels(ps.len())
+                .x_label_formatter(&|v| {
+                    centre(v)
+                        .filter(|i| *i < hs.len())
+                        .map_or(String::new(), |i| format!("1/{:.0}", 1.0 / hs[i]))
+                })
+                .y_label_formatter(&|v| {
+                    centre(v)
+                        .filter(|i| *i < ps.len())
+                        .map_or(String::new(), |i| format!("{:.0e}", ps[i]))
+                })
+                .draw()
+                .map_err(err)?;
+            chart
+                .draw_series(runs.iter().filter(|r| r.method == *m).filter_map(|r| {
+                    let (i, j) = (index(r.h, &hs)?, index(param(r), &ps)?);
+                    let c = match r.status {
+                        Status::Stable => RGBColor(44, 160, 44),
+                        Status::Inaccurate => RGBColor(255, 160, 40),
+                        Status::BlownUp => RGBColor(214, 39, 40),
+                    };
+                    Some(Rectangle::new(
+                        [
+                            (SegmentValue::Exact(i), SegmentValue::Exact(j)),
+                            (SegmentValue::Exact(i + 1), SegmentValue::Exact(j + 1)),
+                        ],
+                        c.filled(),
+                    ))
+                }))
+                .map_err(err)?;
+        }
+        Ok(())
+    }
+}
+
+/// The methods present, in the order they first appear.
+fn methods(runs: &[Run]) -> Vec<&'static str> {
+    let mut m: Vec<&'static str> = Vec::new();
+    for r in runs {
+        if !m.contains(&r.method) {
+            m.push(r.method);
+        }
+    }
+    m
+}
