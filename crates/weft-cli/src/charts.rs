@@ -68,73 +68,15 @@ fn log_range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
 /// Error against wall time, log–log, one curve per method (runs of one stiffness, in step
 /// order), the Pareto front ringed.
 pub fn error_vs_time(runs: &[Run], title: &str, stem: &Path) -> Result<(), String> {
-    both!(stem, SIZE, error_vs_time_on(runs, title))
-}
-
-fn error_vs_time_on<DB: DrawingBackend>(
-    root: &DrawingArea<DB, Shift>,
-    runs: &[Run],
-    title: &str,
-) -> Result<(), String> {
-    let methods = methods(runs);
-    let front = pareto_front(runs);
-    let (x0, x1) = log_range(runs.iter().map(|r| r.seconds));
-    let (y0, y1) = log_range(runs.iter().map(|r| r.error));
-    {
-        root.fill(&WHITE).map_err(err)?;
-        let mut chart = ChartBuilder::on(root)
-            .caption(title, (FONT, 18))
-            .margin(12)
-            .x_label_area_size(42)
-            .y_label_area_size(64)
-            .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
-            .map_err(err)?;
-        chart
-            .configure_mesh()
-            .x_desc("wall time [s]")
-            .y_desc("error [m]")
-            .label_style((FONT, 12))
-            .x_label_formatter(&|v| format!("{v:.0e}"))
-            .y_label_formatter(&|v| format!("{v:.0e}"))
-            .draw()
-            .map_err(err)?;
-        for m in &methods {
-            let c = method_color(m);
-            let pts: Vec<(f64, f64)> = runs
-                .iter()
-                .filter(|r| r.method == *m && r.error.is_finite() && r.seconds > 0.0)
-                .map(|r| (r.seconds, r.error))
-                .collect();
-            chart
-                .draw_series(LineSeries::new(pts.clone(), c.stroke_width(2)))
-                .map_err(err)?
-                .label(m.to_string())
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2))
-                });
-            chart
-                .draw_series(pts.iter().map(|p| Circle::new(*p, 3, c.filled())))
-                .map_err(err)?;
-        }
-        chart
-            .draw_series(
-                runs.iter()
-                    .zip(&front)
-                    .filter(|(r, f)| **f && r.seconds > 0.0)
-                    .map(|(r, _)| Circle::new((r.seconds, r.error), 7, BLACK.stroke_width(1))),
-            )
-            .map_err(err)?
-            .label("Pareto front")
-            .legend(|(x, y)| Circle::new((x + 9, y), 6, BLACK.stroke_width(1)));
-        chart
-            .configure_series_labels()
-            .label_font((FONT, 12))
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(err)?;
-        Ok(())
-    }
+    let curves = Curves {
+        runs,
+        title,
+        x: |r| r.seconds,
+        x_desc: "wall time [s]",
+        orders: None,
+        pareto: true,
+    };
+    both!(stem, SIZE, curves_on(&curves))
 }
 
 /// Error against step size, log–log, one curve per method with its fitted order in the
@@ -145,69 +87,100 @@ pub fn error_vs_step(
     title: &str,
     stem: &Path,
 ) -> Result<(), String> {
-    both!(stem, SIZE, error_vs_step_on(runs, orders, title))
+    let curves = Curves {
+        runs,
+        title,
+        x: |r| r.h,
+        x_desc: "step h [s]",
+        orders: Some(orders),
+        pareto: false,
+    };
+    both!(stem, SIZE, curves_on(&curves))
 }
 
-fn error_vs_step_on<DB: DrawingBackend>(
+/// A log–log chart of error against some measure of each run, a curve per method.
+struct Curves<'a> {
+    runs: &'a [Run],
+    title: &'a str,
+    x: fn(&Run) -> f64,
+    x_desc: &'a str,
+    /// Fitted orders to name in the legend.
+    orders: Option<&'a [(String, f64)]>,
+    /// Ring the Pareto front of (x, error).
+    pareto: bool,
+}
+
+fn curves_on<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
-    runs: &[Run],
-    orders: &[(String, f64)],
-    title: &str,
+    c: &Curves<'_>,
 ) -> Result<(), String> {
-    let methods = methods(runs);
-    let (x0, x1) = log_range(runs.iter().map(|r| r.h));
-    let (y0, y1) = log_range(runs.iter().map(|r| r.error));
-    {
-        root.fill(&WHITE).map_err(err)?;
-        let mut chart = ChartBuilder::on(root)
-            .caption(title, (FONT, 18))
-            .margin(12)
-            .x_label_area_size(42)
-            .y_label_area_size(64)
-            .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
-            .map_err(err)?;
+    let x = c.x;
+    let (x0, x1) = log_range(c.runs.iter().map(x));
+    let (y0, y1) = log_range(c.runs.iter().map(|r| r.error));
+    root.fill(&WHITE).map_err(err)?;
+    let mut chart = ChartBuilder::on(root)
+        .caption(c.title, (FONT, 18))
+        .margin(12)
+        .x_label_area_size(42)
+        .y_label_area_size(64)
+        .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .x_desc(c.x_desc)
+        .y_desc("error [m]")
+        .label_style((FONT, 12))
+        .x_label_formatter(&|v| format!("{v:.0e}"))
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .draw()
+        .map_err(err)?;
+    for m in methods(c.runs) {
+        let color = method_color(m);
+        let mut pts: Vec<(f64, f64)> = c
+            .runs
+            .iter()
+            .filter(|r| r.method == m && r.error.is_finite() && x(r) > 0.0)
+            .map(|r| (x(r), r.error))
+            .collect();
+        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let label = match c.orders.and_then(|o| o.iter().find(|(n, _)| n == m)) {
+            Some((_, order)) => format!("{m} (order {order:.2})"),
+            None => m.to_string(),
+        };
         chart
-            .configure_mesh()
-            .x_desc("step h [s]")
-            .y_desc("error [m]")
-            .label_style((FONT, 12))
-            .x_label_formatter(&|v| format!("{v:.0e}"))
-            .y_label_formatter(&|v| format!("{v:.0e}"))
-            .draw()
-            .map_err(err)?;
-        for m in &methods {
-            let c = method_color(m);
-            let mut pts: Vec<(f64, f64)> = runs
-                .iter()
-                .filter(|r| r.method == *m && r.error.is_finite())
-                .map(|r| (r.h, r.error))
-                .collect();
-            pts.sort_by(|a, b| a.0.total_cmp(&b.0));
-            let order = orders
-                .iter()
-                .find(|(n, _)| n == m)
-                .map_or(f64::NAN, |(_, o)| *o);
-            chart
-                .draw_series(LineSeries::new(pts.clone(), c.stroke_width(2)))
-                .map_err(err)?
-                .label(format!("{m} (order {order:.2})"))
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2))
-                });
-            chart
-                .draw_series(pts.iter().map(|p| Circle::new(*p, 3, c.filled())))
-                .map_err(err)?;
-        }
+            .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
+            .map_err(err)?
+            .label(label)
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
+            });
         chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::LowerRight)
-            .label_font((FONT, 12))
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
+            .draw_series(pts.iter().map(|p| Circle::new(*p, 3, color.filled())))
             .map_err(err)?;
-        Ok(())
     }
+    if c.pareto {
+        let front = pareto_front(c.runs);
+        chart
+            .draw_series(
+                c.runs
+                    .iter()
+                    .zip(&front)
+                    .filter(|(r, f)| **f && x(r) > 0.0)
+                    .map(|(r, _)| Circle::new((x(r), r.error), 7, BLACK.stroke_width(1))),
+            )
+            .map_err(err)?
+            .label("Pareto front")
+            .legend(|(x, y)| Circle::new((x + 9, y), 6, BLACK.stroke_width(1)));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .label_font((FONT, 12))
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()
+        .map_err(err)?;
+    Ok(())
 }
 
 /// Stability maps: one panel per method, step size across and `param` (named `label`) up,
