@@ -31,6 +31,17 @@ pub enum Status {
     BlownUp,
 }
 
+impl Status {
+    /// The name used in CSV and JSON.
+    pub fn name(self) -> &'static str {
+        match self {
+            Status::Stable => "stable",
+            Status::Inaccurate => "inaccurate",
+            Status::BlownUp => "blown_up",
+        }
+    }
+}
+
 /// One run of a sweep.
 #[derive(Clone, Debug, Serialize)]
 pub struct Run {
@@ -192,13 +203,17 @@ pub fn csv(runs: &[Run]) -> String {
     let front = pareto_front(runs);
     let mut s = String::from("scene,method,h,stiffness,error,seconds,steps,status,pareto\n");
     for (r, p) in runs.iter().zip(front) {
-        let status = serde_json::to_value(r.status)
-            .ok()
-            .and_then(|v| v.as_str().map(str::to_string))
-            .unwrap_or_default();
         s += &format!(
             "{},{},{:e},{:e},{:e},{:e},{},{},{}\n",
-            r.scene, r.method, r.h, r.stiffness, r.error, r.seconds, r.steps, status, p
+            r.scene,
+            r.method,
+            r.h,
+            r.stiffness,
+            r.error,
+            r.seconds,
+            r.steps,
+            r.status.name(),
+            p
         );
     }
     s
