@@ -57,6 +57,11 @@ pub fn suite(quick: bool, out: &Path) -> Result<Summary, String> {
             }
         }
     }
+    // The run of stiffness k, method m and step h.
+    let find = |k: f64, m: &str, h: f64| {
+        runs.iter()
+            .find(|r| r.stiffness == k && r.method == m && (r.h - h).abs() < 1e-12)
+    };
     let mut orders = Vec::new();
     println!("pendulum, k = {stiff:e} N: error at 1 s against RK4 [m]");
     println!("| h [s] | {} |", sweep::METHODS.map(|m| m.1).join(" | "));
@@ -65,11 +70,9 @@ pub fn suite(quick: bool, out: &Path) -> Result<Summary, String> {
         let cells: Vec<String> = sweep::METHODS
             .iter()
             .map(|m| {
-                runs.iter()
-                    .find(|r| r.stiffness == stiff && r.method == m.1 && (r.h - h).abs() < 1e-12)
-                    .map_or("-".into(), |r| {
-                        format!("{:.3e} ({:.1} ms)", r.error, r.seconds * 1e3)
-                    })
+                find(stiff, m.1, h).map_or("-".into(), |r| {
+                    format!("{:.3e} ({:.1} ms)", r.error, r.seconds * 1e3)
+                })
             })
             .collect();
         println!("| 1/{:.0} | {} |", 1.0 / h, cells.join(" | "));
@@ -106,17 +109,11 @@ pub fn suite(quick: bool, out: &Path) -> Result<Summary, String> {
         for &k in stiffnesses {
             let row: String = hs
                 .iter()
-                .map(|&h| {
-                    match runs
-                        .iter()
-                        .find(|r| r.stiffness == k && r.method == m.1 && (r.h - h).abs() < 1e-12)
-                        .map(|r| r.status)
-                    {
-                        Some(Status::Stable) => 'S',
-                        Some(Status::Inaccurate) => 'I',
-                        Some(Status::BlownUp) => 'X',
-                        None => '?',
-                    }
+                .map(|&h| match find(k, m.1, h).map(|r| r.status) {
+                    Some(Status::Stable) => 'S',
+                    Some(Status::Inaccurate) => 'I',
+                    Some(Status::BlownUp) => 'X',
+                    None => '?',
                 })
                 .collect();
             println!("  k = {k:7.0e}  {row}");

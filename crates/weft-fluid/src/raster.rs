@@ -130,8 +130,7 @@ pub fn sample_triangle(
 }
 
 /// Clears the grid's solid fields (all but obstacle faces, α = 0) and rasterizes `samples`
-/// into them, with the weights of
-/// [`MacGrid::face_stencil`].
+/// into them, with the weights of [`MacGrid::face_stencil`].
 pub fn rasterize(grid: &mut MacGrid, samples: &[Sample], max_solid_fraction: f64) -> RasterStats {
     let dom = grid.domain.clone();
     let mut stats = RasterStats::default();

@@ -568,6 +568,12 @@ fn colliders_are_obstacles_moving_with_their_transform() {
     f.obstacles(&scene, &[None, Some(before), None], h, &mut faces);
     assert!(faces.len() > 300, "{}", faces.len());
     let back = before * after.inverse();
+    let from_centre = |p: [f64; 3]| {
+        (0..3)
+            .map(|b| (p[b] - centre[b]).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    };
     for s in &faces {
         let a = s.axis as usize;
         let d = &f.domain;
@@ -579,9 +585,7 @@ fn colliders_are_obstacles_moving_with_their_transform() {
             fi / (dims[0] * dims[1]),
         ];
         let p = d.face_position(a, idx);
-        let r =
-            ((p[0] - centre[0]).powi(2) + (p[1] - centre[1]).powi(2) + (p[2] - centre[2]).powi(2))
-                .sqrt();
+        let r = from_centre(p);
         assert!(r < 0.1, "face at {p:?}, {r} from the centre");
         let p1 = nalgebra::Point3::from(p);
         let want = (p1 - back.transform_point(&p1))[a] / h;
@@ -606,11 +610,7 @@ fn colliders_are_obstacles_moving_with_their_transform() {
             for j in 0..dims[1] {
                 for i in 0..dims[0] {
                     let p = d.face_position(a, [i, j, k]);
-                    let r = ((p[0] - centre[0]).powi(2)
-                        + (p[1] - centre[1]).powi(2)
-                        + (p[2] - centre[2]).powi(2))
-                    .sqrt();
-                    if r < 0.08 {
+                    if from_centre(p) < 0.08 {
                         deep += 1;
                         assert!(
                             found.contains(&(a as u8, d.face(a, i, j, k) as u32)),
