@@ -25,7 +25,7 @@ pub use behavior::{
 pub use build::{Compiled, Pin, SystemBuilder, compile};
 pub use coupled::{
     CoupledError, CoupledSettings, CoupledStats, CoupledStepper, Coupling, DragElement, DragShape,
-    Exchange, Predicted, Relaxation, fluid_change, relax, velocity_change,
+    Exchange, Predicted, Relaxation, RelaxationMethod, fluid_change, relax, velocity_change,
 };
 pub use error::SimError;
 pub use fluid::FluidSpec;

@@ -4,7 +4,7 @@
 //! Per frame (one time step h = 1/fps): **predict** advects the fluid (u*; gravity is in the
 //! hydrostatic pressure) and, when asked, diffuses it (viscosity);
 //! then, per coupling iteration, **forces** samples the solids in the fluid iterate (drag,
-//! pressure, lift), **solid** solves the implicit solid step with them (Aitken-relaxed in
+//! pressure, lift), **solid** solves the implicit solid step with them (Aitken- or quasi-Newton-relaxed in
 //! Newton mode), **rasterize** puts the solids' fractions, drag and velocities on the faces,
 //! **pressure** projects u* with the solids prescribed, and **update** forms the next iterate
 //! and tests convergence. **finish** ends the step. Values between stages are immutable
@@ -28,7 +28,7 @@ use weft_graph::{
 use weft_scene::Transform;
 use weft_sim::{
     BehaviorTree, Compiled, CoupledSettings, CoupledStepper, Coupling, Exchange, Relaxation,
-    SimState, compile, fluid_change, relax, velocity_change,
+    RelaxationMethod, SimState, compile, fluid_change, relax, velocity_change,
 };
 use weft_solid::{Method, Settings, SolidSystem, State};
 
@@ -71,6 +71,8 @@ pub struct SolidIterate {
     state: State,
     relaxation: Relaxation,
     iteration: usize,
+    /// The fixed point's residual |H(v) − v| before relaxation [m/s].
+    change: f64,
 }
 
 /// A fluid iterate (None without fluid, or in stages that do nothing for this method).
@@ -317,7 +319,11 @@ fn solid(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
         tolerance: p.f64("tolerance"),
         max_iterations: p.i64("max_iterations").max(1) as usize,
     };
-    let aitken = p.str("relaxation") == "aitken";
+    let relaxation_method = match p.str("relaxation") {
+        "quasi_newton" => RelaxationMethod::QuasiNewton,
+        "none" => RelaxationMethod::None,
+        _ => RelaxationMethod::Aitken,
+    };
     let frame = cx.frame();
     let ws = ws.for_scene(&step.compiled);
     let (Some(sys), targets) = (ws.system.as_mut(), &mut ws.targets) else {
@@ -343,8 +349,11 @@ fn solid(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
             &mut next,
         )
         .map_err(|e| failed(format!("frame {frame}: {e}")))?;
+    // The residual before relaxation: the relaxed change is small when the factor is.
+    let change = velocity_change(&next.v, &it.sim.solid.v);
     let mut relaxation = it.relaxation.clone();
-    if aitken && step.method == Coupling::Newton && it.iteration > 0 {
+    relaxation.method = relaxation_method;
+    if step.method == Coupling::Newton && it.iteration > 0 {
         relax(
             &step.start.solid,
             &it.sim.solid,
@@ -364,6 +373,7 @@ fn solid(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
             state: next,
             relaxation,
             iteration: it.iteration,
+            change,
         }),
     );
     Ok(())
@@ -438,7 +448,7 @@ fn update(_: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let solid = get::<SolidIterate>(&sv, "solid")?;
     let fv = cx.input("fluid")?;
     let fluid = get::<FluidValue>(&fv, "fluid")?.0.clone();
-    let dv = velocity_change(&solid.state.v, &it.sim.solid.v);
+    let dv = solid.change;
     let du = match (&fluid, &it.fluid) {
         (Some(a), Some(b)) => fluid_change(a, b),
         _ => 0.0,
@@ -554,7 +564,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
     )?;
     stage(
         r,
-        NodeSpec::new("coupled.solid", "coupled stage: the implicit solid step with the fluid prescribed (drag implicit, pressure and lift explicit), Aitken-relaxed between Newton iterations")
+        NodeSpec::new("coupled.solid", "coupled stage: the implicit solid step with the fluid prescribed (drag implicit, pressure and lift explicit), Aitken- or quasi-Newton-relaxed between Newton iterations")
             .input("step", "coupled_step", "the step's start")
             .input("iterate", "coupled", "the coupling iterate")
             .input("exchange", "coupled_exchange", "drag and forces")
@@ -562,7 +572,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             .param(ParamSpec::choice("method", &["newton", "linearized", "explicit"], "newton").doc("the solid solve"))
             .param(ParamSpec::float("tolerance", 1e-6).gt(0.0).unit("m/s").doc("Newton tolerance of the solid solve"))
             .param(ParamSpec::int("max_iterations", 50).ge(1.0).le(10_000.0).doc("Newton iteration limit of the solid solve"))
-            .param(ParamSpec::choice("relaxation", &["aitken", "none"], "aitken").doc("relaxation of the solid iterate between coupling iterations (aitken: Irons-Tuck delta-squared)")),
+            .param(ParamSpec::choice("relaxation", &["aitken", "quasi_newton", "none"], "aitken").doc("relaxation of the solid iterate between coupling iterations (aitken: Irons-Tuck delta-squared; quasi_newton: IQN-ILS, a least-squares inverse Jacobian from the step's iterates)")),
         solid,
     )?;
     stage(
