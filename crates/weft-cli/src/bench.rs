@@ -176,6 +176,22 @@ fn graph_suite(reg: &Arc<Registry>, quick: bool) -> Vec<Row> {
 }
 
 /// Runs `weft bench`.
+/// The exit code of a sweep suite: 1 when it failed, or (with `--quick`) when a fact theory
+/// fixes did not hold.
+fn checked(quick: bool, result: Result<crate::sweep::Checks, String>) -> ExitCode {
+    match result {
+        Ok(checks) if quick && checks.iter().any(|(_, ok)| !ok) => {
+            eprintln!("error: a fact theory fixes did not hold (see FAIL above)");
+            ExitCode::from(1)
+        }
+        Ok(_) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(1)
+        }
+    }
+}
+
 pub fn run(reg: &Arc<Registry>, a: BenchArgs) -> ExitCode {
     let rows = match a.suite.as_str() {
         "graph" => graph_suite(reg, a.quick),
@@ -194,21 +210,17 @@ pub fn run(reg: &Arc<Registry>, a: BenchArgs) -> ExitCode {
             }
         },
         "accuracy" => {
-            return match crate::bench_accuracy::suite(a.quick, &a.out) {
-                Ok(s) if a.quick && s.checks.iter().any(|(_, ok)| !ok) => {
-                    eprintln!("error: a fact theory fixes did not hold (see FAIL above)");
-                    ExitCode::from(1)
-                }
-                Ok(_) => ExitCode::SUCCESS,
-                Err(e) => {
-                    eprintln!("error: {e}");
-                    ExitCode::from(1)
-                }
-            };
+            return checked(
+                a.quick,
+                crate::bench_accuracy::suite(a.quick, &a.out).map(|s| s.checks),
+            );
+        }
+        "coupling" => {
+            return checked(a.quick, crate::bench_coupling::suite(a.quick, &a.out));
         }
         other => {
             eprintln!(
-                "error: unknown bench suite '{other}' (suites: graph, solid, fluid, accuracy)"
+                "error: unknown bench suite '{other}' (suites: graph, solid, fluid, accuracy, coupling)"
             );
             return ExitCode::from(2);
         }

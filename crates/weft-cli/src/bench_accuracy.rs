@@ -60,7 +60,7 @@ pub fn suite(quick: bool, out: &Path) -> Result<Summary, String> {
     // The run of stiffness k, method m and step h.
     let find = |k: f64, m: &str, h: f64| {
         runs.iter()
-            .find(|r| r.stiffness == k && r.method == m && (r.h - h).abs() < 1e-12)
+            .find(|r| r.param == k && r.method == m && (r.h - h).abs() < 1e-12)
     };
     let mut orders = Vec::new();
     println!("pendulum, k = {stiff:e} N: error at 1 s against RK4 [m]");
@@ -81,7 +81,7 @@ pub fn suite(quick: bool, out: &Path) -> Result<Summary, String> {
         let pts: Vec<(f64, f64)> = runs
             .iter()
             .filter(|r| {
-                r.stiffness == stiff
+                r.param == stiff
                     && r.method == m.1
                     && r.h <= 1.0 / 200.0 + 1e-12
                     && r.status != Status::BlownUp
@@ -132,12 +132,12 @@ pub fn suite(quick: bool, out: &Path) -> Result<Summary, String> {
             .filter(|r| r.method == "explicit" && pred(r))
             .collect::<Vec<_>>()
     };
-    let above = explicit(&|r| r.h > 1.2 * 2.0 / r.stiffness.sqrt());
+    let above = explicit(&|r| r.h > 1.2 * 2.0 / r.param.sqrt());
     checks.push((
         format!("explicit blows up above 1.2 × 2/ω ({} runs)", above.len()),
         !above.is_empty() && above.iter().all(|r| r.status == Status::BlownUp),
     ));
-    let below = explicit(&|r| r.h < 0.5 * 2.0 / r.stiffness.sqrt());
+    let below = explicit(&|r| r.h < 0.5 * 2.0 / r.param.sqrt());
     checks.push((
         format!("explicit holds below 0.5 × 2/ω ({} runs)", below.len()),
         !below.is_empty() && below.iter().all(|r| r.status != Status::BlownUp),
@@ -166,11 +166,7 @@ pub fn suite(quick: bool, out: &Path) -> Result<Summary, String> {
         weft_graph::atomic_write(&p, text.as_bytes())
             .map_err(|e| format!("cannot write {}: {e}", p.display()))?;
     }
-    let stiff_runs: Vec<Run> = runs
-        .iter()
-        .filter(|r| r.stiffness == stiff)
-        .cloned()
-        .collect();
+    let stiff_runs: Vec<Run> = runs.iter().filter(|r| r.param == stiff).cloned().collect();
     crate::charts::error_vs_time(
         &stiff_runs,
         "Pendulum (k = 1e6 N): error at 1 s against wall time",
@@ -184,12 +180,12 @@ pub fn suite(quick: bool, out: &Path) -> Result<Summary, String> {
     )?;
     let map_runs: Vec<Run> = runs
         .iter()
-        .filter(|r| stiffnesses.contains(&r.stiffness))
+        .filter(|r| stiffnesses.contains(&r.param))
         .cloned()
         .collect();
     crate::charts::stability_map(
         &map_runs,
-        |r| r.stiffness,
+        |r| r.param,
         "rod stiffness k [N]",
         "Pendulum stability: green stable, orange error > 1 cm, red blown up",
         &out.join("accuracy_stability"),

@@ -13,9 +13,24 @@ const SIZE: (u32, u32) = (760, 520);
 
 fn method_color(m: &str) -> RGBColor {
     match m {
-        "explicit" => RGBColor(214, 39, 40),
-        "linearized" => RGBColor(31, 119, 180),
-        _ => RGBColor(44, 160, 44),
+        "explicit" | "staggered" => RGBColor(214, 39, 40),
+        "linearized" | "one_way" => RGBColor(31, 119, 180),
+        "newton" => RGBColor(44, 160, 44),
+        // Resolution sweeps name curves by scene: a fixed colour per name.
+        other => {
+            const PALETTE: [RGBColor; 6] = [
+                RGBColor(148, 103, 189),
+                RGBColor(255, 127, 14),
+                RGBColor(23, 190, 207),
+                RGBColor(140, 86, 75),
+                RGBColor(227, 119, 194),
+                RGBColor(127, 127, 127),
+            ];
+            let hash = other
+                .bytes()
+                .fold(0usize, |a, b| a.wrapping_mul(31) + b as usize);
+            PALETTE[hash % PALETTE.len()]
+        }
     }
 }
 
@@ -125,10 +140,14 @@ fn curves_on<DB: DrawingBackend>(
         .y_label_area_size(64)
         .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
         .map_err(err)?;
+    let y_desc = match c.runs.first().map_or("m", |r| r.error_unit) {
+        "relative" => "relative error".to_string(),
+        unit => format!("error [{unit}]"),
+    };
     chart
         .configure_mesh()
         .x_desc(c.x_desc)
-        .y_desc("error [m]")
+        .y_desc(y_desc)
         .label_style((FONT, 12))
         .x_label_formatter(&|v| format!("{v:.0e}"))
         .y_label_formatter(&|v| format!("{v:.0e}"))

@@ -8,11 +8,13 @@
 
 mod bench;
 mod bench_accuracy;
+mod bench_coupling;
 mod bench_fluid;
 mod bench_solid;
 mod charts;
 mod nodes;
 mod run;
+mod scenes_coupled;
 mod sweep;
 
 use clap::{Parser, Subcommand};

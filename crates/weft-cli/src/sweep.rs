@@ -32,6 +32,18 @@ pub enum Status {
 }
 
 impl Status {
+    /// The status of a run that `blown` up or ended `error` from its reference, called
+    /// inaccurate above `threshold`.
+    pub fn of(blown: bool, error: f64, threshold: f64) -> Status {
+        if blown || !error.is_finite() {
+            Status::BlownUp
+        } else if error > threshold {
+            Status::Inaccurate
+        } else {
+            Status::Stable
+        }
+    }
+
     /// The name used in CSV and JSON.
     pub fn name(self) -> &'static str {
         match self {
@@ -47,14 +59,25 @@ impl Status {
 pub struct Run {
     /// The verification scene.
     pub scene: &'static str,
-    /// `explicit`, `linearized` or `newton`.
+    /// The method: `explicit`, `linearized` or `newton` for solids; `one_way`, `staggered` or
+    /// `newton` for coupling; the scene's own name for resolution sweeps.
     pub method: &'static str,
-    /// Time step [s].
+    /// Time step [s] (NaN for static solves).
     pub h: f64,
-    /// Stretch stiffness k [N] (the pendulum rod's).
-    pub stiffness: f64,
-    /// Distance from the reference at the end [m] (NaN when blown up).
+    /// Cell or segment size [m] (NaN where the scene has no grid).
+    pub dx: f64,
+    /// The scene's swept parameter, named by `param_name` (the pendulum's stiffness, the
+    /// strand's drag-to-mass ratio, the Newton tolerance; NaN when none).
+    pub param: f64,
+    /// What `param` is, with its unit.
+    pub param_name: &'static str,
+    /// Distance from the reference (NaN when blown up), in `error_unit`.
     pub error: f64,
+    /// `m`, `m/s`, or `relative` (a fraction of the reference).
+    pub error_unit: &'static str,
+    /// Solver iterations per step (Newton for solids, coupling iterations for coupled
+    /// scenes; NaN where none are counted).
+    pub iterations: f64,
     /// Wall time of the run [s].
     pub seconds: f64,
     /// Time steps taken.
@@ -136,11 +159,16 @@ pub fn pendulum_run(method: (Method, &'static str), h: f64, k: f64, reference: [
     };
     let t = Instant::now();
     let mut blown = false;
+    let mut iterations = 0;
     match Integrator::new(&sys) {
         Ok(mut integ) => {
             for _ in 0..steps {
-                let ok = integ.step(&sys, &mut state, None, h, &settings).is_ok();
-                if !ok || !state.x[1].iter().all(|c| c.is_finite()) || state.x[1].norm() > 10.0 {
+                let step = integ.step(&sys, &mut state, None, h, &settings);
+                iterations += step.as_ref().map_or(0, |s| s.iterations);
+                if step.is_err()
+                    || !state.x[1].iter().all(|c| c.is_finite())
+                    || state.x[1].norm() > 10.0
+                {
                     blown = true;
                     break;
                 }
@@ -158,17 +186,19 @@ pub fn pendulum_run(method: (Method, &'static str), h: f64, k: f64, reference: [
         scene: "pendulum",
         method: method.1,
         h,
-        stiffness: k,
+        dx: f64::NAN,
+        param: k,
+        param_name: "rod stiffness k [N]",
         error,
+        error_unit: "m",
+        iterations: if method.0 == Method::Explicit {
+            f64::NAN
+        } else {
+            iterations as f64 / steps as f64
+        },
         seconds,
         steps,
-        status: if blown {
-            Status::BlownUp
-        } else if error > INACCURATE {
-            Status::Inaccurate
-        } else {
-            Status::Stable
-        },
+        status: Status::of(blown, error, INACCURATE),
     }
 }
 
@@ -201,15 +231,21 @@ pub fn pareto_front(runs: &[Run]) -> Vec<bool> {
 /// The runs as CSV (a header, then a row per run, with the Pareto flag).
 pub fn csv(runs: &[Run]) -> String {
     let front = pareto_front(runs);
-    let mut s = String::from("scene,method,h,stiffness,error,seconds,steps,status,pareto\n");
+    let mut s = String::from(
+        "scene,method,h,dx,param,param_name,error,error_unit,iterations,seconds,steps,status,pareto\n",
+    );
     for (r, p) in runs.iter().zip(front) {
         s += &format!(
-            "{},{},{:e},{:e},{:e},{:e},{},{},{}\n",
+            "{},{},{:e},{:e},{:e},\"{}\",{:e},{},{:e},{:e},{},{},{}\n",
             r.scene,
             r.method,
             r.h,
-            r.stiffness,
+            r.dx,
+            r.param,
+            r.param_name,
             r.error,
+            r.error_unit,
+            r.iterations,
             r.seconds,
             r.steps,
             r.status.name(),
@@ -217,6 +253,82 @@ pub fn csv(runs: &[Run]) -> String {
         );
     }
     s
+}
+
+/// Facts checked against theory, each with whether it held.
+pub type Checks = Vec<(String, bool)>;
+
+/// Prints the checks (ok / FAIL per line).
+pub fn print_checks(checks: &Checks) {
+    println!();
+    for (c, ok) in checks {
+        println!("{} {c}", if *ok { "ok  " } else { "FAIL" });
+    }
+}
+
+/// Writes `runs` as `name`.csv and `name`.json (with `summary` and the status thresholds)
+/// into `out`, atomically.
+pub fn write_runs(
+    out: &std::path::Path,
+    name: &str,
+    runs: &[Run],
+    summary: serde_json::Value,
+) -> Result<(), String> {
+    std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
+    let json = serde_json::json!({"runs": runs, "summary": summary});
+    for (file, text) in [
+        (format!("{name}.csv"), csv(runs)),
+        (
+            format!("{name}.json"),
+            serde_json::to_string_pretty(&json).unwrap_or_default(),
+        ),
+    ] {
+        let p = out.join(file);
+        weft_graph::atomic_write(&p, text.as_bytes())
+            .map_err(|e| format!("cannot write {}: {e}", p.display()))?;
+    }
+    Ok(())
+}
+
+/// The fitted order of the finite runs among `runs` that `keep` selects, by `x` (step or
+/// cell size); NaN with fewer than two.
+pub fn order_of(runs: &[Run], x: fn(&Run) -> f64, keep: impl Fn(&Run) -> bool) -> f64 {
+    let pts: Vec<(f64, f64)> = runs
+        .iter()
+        .filter(|r| keep(r) && r.error.is_finite() && r.error > 0.0)
+        .map(|r| (x(r), r.error))
+        .collect();
+    if pts.len() >= 2 {
+        fitted_order(&pts)
+    } else {
+        f64::NAN
+    }
+}
+
+/// Prints a stability map as text: a row per parameter value (ascending), a column per step
+/// (descending), S stable, I inaccurate, X blown up.
+pub fn print_map(runs: &[Run], methods: &[&str], params: &[f64], hs: &[f64]) {
+    for m in methods {
+        println!("{m}:");
+        for &p in params {
+            let row: String = hs
+                .iter()
+                .map(|&h| {
+                    match runs
+                        .iter()
+                        .find(|r| r.method == *m && r.param == p && (r.h - h).abs() < 1e-12)
+                        .map(|r| r.status)
+                    {
+                        Some(Status::Stable) => 'S',
+                        Some(Status::Inaccurate) => 'I',
+                        Some(Status::BlownUp) => 'X',
+                        None => '?',
+                    }
+                })
+                .collect();
+            println!("  {p:9.2e}  {row}");
+        }
+    }
 }
 
 #[cfg(test)]
@@ -248,8 +360,12 @@ mod tests {
             scene: "t",
             method: "m",
             h: 0.1,
-            stiffness: 1.0,
+            dx: f64::NAN,
+            param: 1.0,
+            param_name: "p",
             error,
+            error_unit: "m",
+            iterations: 1.0,
             seconds,
             steps: 1,
             status: Status::Stable,

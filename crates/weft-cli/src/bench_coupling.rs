@@ -1,0 +1,170 @@
+//! `weft bench coupling`: where each coupling method holds (see [`crate::scenes_coupled`]
+//! for the scene and its converged reference).
+//!
+//! A light strand (ρ_s = 100 kg/m³, a tenth of the water's density) rises in a closed box of
+//! water. Swept: the step h and the drag scale ξ_D, so the drag-to-mass ratio K/m = k/ρ_s,
+//! and the methods `one_way`, `staggered` and `newton`. The theory (VERIFY.md, "stability
+//! where methods fail"): exchanging the forces once per step lags the fluid's reply, so
+//! `staggered` goes wrong above some h·K/m; `newton` iterates the exchange to convergence and
+//! holds; `one_way` ignores the reply and is wrong wherever the strand drags the water along.
+//!
+//! `--quick` asserts: `newton` never blows up and stays within 5 % at the strongest drag,
+//! converging at first order in h there (band 0.8–1.2: backward Euler); `staggered` is off by
+//! more than 5 % in every cell with h·K/m ≥ 200 while `newton` holds in each of them.
+
+use crate::scenes_coupled::{self, COUPLINGS};
+use crate::sweep::{self, Checks, Run, Status};
+use std::path::Path;
+
+/// The strand's density [kg/m³].
+const DENSITY: f64 = 100.0;
+/// h·K/m above which staggered exchange is asserted to fail.
+const STAGGERED_LIMIT: f64 = 200.0;
+
+/// Runs the sweep, writes `coupling.csv`/`.json` and the charts into `out`, prints the map
+/// and the checks, and returns the checks.
+pub fn suite(quick: bool, out: &Path) -> Result<Checks, String> {
+    let (xis, ns): (&[f64], &[f64]) = if quick {
+        (&[1e6, 1e8, 1e9], &[25.0, 100.0, 400.0])
+    } else {
+        (&[1e6, 1e7, 1e8, 1e9], &[25.0, 50.0, 100.0, 200.0, 400.0])
+    };
+    let hs: Vec<f64> = ns.iter().map(|n| 1.0 / n).collect();
+    let mut runs: Vec<Run> = Vec::new();
+    for &xi in xis {
+        let reference = scenes_coupled::strand_reference(DENSITY, xi);
+        if reference.is_none() {
+            println!("warning: no converged reference at ξ_D = {xi:e}: only blow-ups are judged");
+        }
+        for m in COUPLINGS {
+            for &h in &hs {
+                runs.push(scenes_coupled::light_strand_run(
+                    m,
+                    h,
+                    DENSITY,
+                    xi,
+                    reference.as_deref(),
+                ));
+            }
+        }
+    }
+    let strongest = scenes_coupled::strand_drag(*xis.last().unwrap_or(&1e9)) / DENSITY;
+    println!(
+        "light strand (ρ_s = {DENSITY} kg/m³) rising in water: largest velocity error against Newton at h = 1/1600 s"
+    );
+    println!("| K/m [1/s] | h [s] | h·K/m | one_way | staggered | newton |");
+    println!("|---:|---:|---:|---:|---:|---:|");
+    let find = |m: &str, p: f64, h: f64| {
+        runs.iter()
+            .find(|r| r.method == m && r.param == p && (r.h - h).abs() < 1e-12)
+    };
+    let mut params: Vec<f64> = runs.iter().map(|r| r.param).collect();
+    params.sort_by(f64::total_cmp);
+    params.dedup();
+    for &p in &params {
+        for &h in &hs {
+            let cells: Vec<String> = COUPLINGS
+                .iter()
+                .map(|m| {
+                    find(m.1, p, h).map_or("-".into(), |r| match r.status {
+                        Status::BlownUp => "blown up".into(),
+                        _ => format!("{:.2e} ({:.1} it)", r.error, r.iterations),
+                    })
+                })
+                .collect();
+            println!(
+                "| {p:.2e} | 1/{:.0} | {:.0} | {} |",
+                1.0 / h,
+                h * p,
+                cells.join(" | ")
+            );
+        }
+    }
+    let newton_order = sweep::order_of(
+        &runs,
+        |r| r.h,
+        |r| r.method == "newton" && r.param == strongest,
+    );
+    println!("\nstability map (S within 5 %, I further, X blown up): rows K/m [1/s], columns h");
+    sweep::print_map(&runs, &COUPLINGS.map(|m| m.1), &params, &hs);
+    let mut checks: Checks = Vec::new();
+    checks.push((
+        "newton never blows up".into(),
+        runs.iter()
+            .filter(|r| r.method == "newton")
+            .all(|r| r.status != Status::BlownUp),
+    ));
+    checks.push((
+        format!("newton within 5 % at the strongest drag (K/m = {strongest:.2e} 1/s)"),
+        runs.iter()
+            .filter(|r| r.method == "newton" && r.param == strongest)
+            .all(|r| r.status == Status::Stable),
+    ));
+    checks.push((
+        format!("newton first order in h at the strongest drag (observed {newton_order:.3}, band 0.8–1.2)"),
+        (0.8..=1.2).contains(&newton_order),
+    ));
+    let beyond: Vec<&Run> = runs
+        .iter()
+        .filter(|r| r.method == "staggered" && r.h * r.param >= STAGGERED_LIMIT)
+        .collect();
+    let newton_there = beyond
+        .iter()
+        .all(|s| find("newton", s.param, s.h).is_some_and(|n| n.status == Status::Stable));
+    checks.push((
+        format!(
+            "staggered fails where h·K/m ≥ {STAGGERED_LIMIT} ({} cells) and newton holds there",
+            beyond.len()
+        ),
+        !beyond.is_empty() && beyond.iter().all(|r| r.status != Status::Stable) && newton_there,
+    ));
+    sweep::print_checks(&checks);
+    sweep::write_runs(
+        out,
+        "coupling",
+        &runs,
+        serde_json::json!({
+            "density_kg_m3": DENSITY,
+            "inaccurate_above": scenes_coupled::STRAND_INACCURATE,
+            "newton_order": newton_order,
+            "checks": checks,
+        }),
+    )?;
+    let strongest_runs: Vec<Run> = runs
+        .iter()
+        .filter(|r| r.param == strongest)
+        .cloned()
+        .collect();
+    let title = format!("Light strand, K/m = {strongest:.1e} 1/s");
+    crate::charts::error_vs_time(
+        &strongest_runs,
+        &format!("{title}: error against wall time"),
+        &out.join("coupling_error_time"),
+    )?;
+    let orders: Vec<(String, f64)> = COUPLINGS
+        .iter()
+        .map(|m| {
+            let o = sweep::order_of(&strongest_runs, |r| r.h, |r| r.method == m.1);
+            (m.1.to_string(), o)
+        })
+        .collect();
+    crate::charts::error_vs_step(
+        &strongest_runs,
+        &orders,
+        &format!("{title}: error against step"),
+        &out.join("coupling_error_step"),
+    )?;
+    crate::charts::stability_map(
+        &runs,
+        |r| r.param,
+        "drag-to-mass ratio K/m [1/s]",
+        "Light strand coupling: green within 5 %, orange further, red blown up",
+        &out.join("coupling_stability"),
+    )?;
+    println!(
+        "\nwrote {} runs and charts (PNG, SVG) to {}",
+        runs.len(),
+        out.display()
+    );
+    Ok(checks)
+}
