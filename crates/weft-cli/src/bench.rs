@@ -215,12 +215,15 @@ pub fn run(reg: &Arc<Registry>, a: BenchArgs) -> ExitCode {
                 crate::bench_accuracy::suite(a.quick, &a.out).map(|s| s.checks),
             );
         }
+        "convergence" => {
+            return checked(a.quick, crate::bench_convergence::suite(a.quick, &a.out));
+        }
         "coupling" => {
             return checked(a.quick, crate::bench_coupling::suite(a.quick, &a.out));
         }
         other => {
             eprintln!(
-                "error: unknown bench suite '{other}' (suites: graph, solid, fluid, accuracy, coupling)"
+                "error: unknown bench suite '{other}' (suites: graph, solid, fluid, accuracy, convergence, coupling)"
             );
             return ExitCode::from(2);
         }

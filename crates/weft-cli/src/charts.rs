@@ -16,21 +16,13 @@ fn method_color(m: &str) -> RGBColor {
         "explicit" | "staggered" => RGBColor(214, 39, 40),
         "linearized" | "one_way" => RGBColor(31, 119, 180),
         "newton" => RGBColor(44, 160, 44),
-        // Resolution sweeps name curves by scene: a fixed colour per name.
-        other => {
-            const PALETTE: [RGBColor; 6] = [
-                RGBColor(148, 103, 189),
-                RGBColor(255, 127, 14),
-                RGBColor(23, 190, 207),
-                RGBColor(140, 86, 75),
-                RGBColor(227, 119, 194),
-                RGBColor(127, 127, 127),
-            ];
-            let hash = other
-                .bytes()
-                .fold(0usize, |a, b| a.wrapping_mul(31) + b as usize);
-            PALETTE[hash % PALETTE.len()]
-        }
+        // Resolution sweeps name curves by scene.
+        "cantilever" => RGBColor(148, 103, 189),
+        "catenary" => RGBColor(140, 86, 75),
+        "shell_strip" => RGBColor(127, 127, 127),
+        "taylor_green" => RGBColor(255, 127, 14),
+        "darcy_slab" => RGBColor(23, 190, 207),
+        _ => RGBColor(227, 119, 194),
     }
 }
 
@@ -107,6 +99,24 @@ pub fn error_vs_step(
         title,
         x: |r| r.h,
         x_desc: "step h [s]",
+        orders: Some(orders),
+        pareto: false,
+    };
+    both!(stem, SIZE, curves_on(&curves))
+}
+
+/// Error against segment or cell size, log–log, one curve per scene with its fitted order.
+pub fn error_vs_size(
+    runs: &[Run],
+    orders: &[(String, f64)],
+    title: &str,
+    stem: &Path,
+) -> Result<(), String> {
+    let curves = Curves {
+        runs,
+        title,
+        x: |r| r.dx,
+        x_desc: "segment or cell size [m]",
         orders: Some(orders),
         pareto: false,
     };

@@ -8,6 +8,7 @@
 
 mod bench;
 mod bench_accuracy;
+mod bench_convergence;
 mod bench_coupling;
 mod bench_fluid;
 mod bench_solid;
@@ -15,6 +16,7 @@ mod charts;
 mod nodes;
 mod run;
 mod scenes_coupled;
+mod scenes_resolution;
 mod sweep;
 
 use clap::{Parser, Subcommand};
