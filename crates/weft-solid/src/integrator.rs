@@ -658,14 +658,21 @@ impl Integrator {
             }
             stats.iterations = it + 1;
             stats.residuals.push(res);
-            if !linearized && res < settings.tolerance {
-                stats.converged = true;
-                break;
-            }
+            // Converged: the step still takes this last (small) Newton correction, whole.
+            // Stopping before it would leave a step that starts below the tolerance (a
+            // body at rest whose first velocity change g·h is below it) where it started.
+            let done = !linearized && res < settings.tolerance;
             // Backtracking line search on the objective (Armijo, c = 1e-4).
-            let e0 = self.objective(sys, x, x0, mode);
-            let slope: f64 = self.grad.iter().zip(&self.dir).map(|(g, d)| g * d).sum();
-            let xmax = x.iter().fold(0.0f64, |m, p| m.max(p.amax()));
+            // (Not needed when the whole step is taken.)
+            let (e0, slope, xmax) = if linearized || done {
+                (0.0, 0.0, 0.0)
+            } else {
+                (
+                    self.objective(sys, x, x0, mode),
+                    self.grad.iter().zip(&self.dir).map(|(g, d)| g * d).sum(),
+                    x.iter().fold(0.0f64, |m, p| m.max(p.amax())),
+                )
+            };
             let mut alpha = 1.0;
             loop {
                 for ((t, &p), &f) in self.x_trial.iter_mut().zip(x.iter()).zip(&self.free_of) {
@@ -676,7 +683,7 @@ impl Integrator {
                         p + alpha * Vector3::new(self.dir[f], self.dir[f + 1], self.dir[f + 2])
                     };
                 }
-                if linearized {
+                if linearized || done {
                     break;
                 }
                 let e1 = self.objective(sys, &self.x_trial, x0, mode);
@@ -692,8 +699,9 @@ impl Integrator {
                 stats.halvings += 1;
             }
             std::mem::swap(x, &mut self.x_trial);
-            if linearized {
+            if linearized || done {
                 stats.converged = true;
+                break;
             }
         }
         if !stats.converged {

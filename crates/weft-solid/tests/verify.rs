@@ -478,3 +478,25 @@ fn a_settling_fibre_falls_at_its_slender_body_speeds() {
     assert!((speeds[1] / want_v - 1.0).abs() < 1e-6, "{speeds:?}");
     assert!(((speeds[1] / speeds[0]) / (g_perp / g_par) - 1.0).abs() < 1e-6);
 }
+
+/// A loose Newton tolerance still takes the step: a body at rest whose velocity change in a
+/// step (g·h = 0.098 m/s) is below the tolerance (0.1 m/s) falls at −g·h after it, exactly
+/// (free fall is linear: one Newton step is the implicit Euler answer to rounding). Before
+/// the fix the converged test came before the correction and the body never moved.
+#[test]
+fn a_tolerance_looser_than_the_step_still_moves_the_body() {
+    let mut sys = SolidSystem::new(vec![1.0]);
+    sys.gravity = Vector3::new(0.0, -G, 0.0);
+    let mut state = at_rest(vec![Vector3::zeros()]);
+    let mut integ = Integrator::new(&sys).unwrap();
+    let settings = Settings {
+        method: Method::Newton,
+        tolerance: 0.1,
+        max_iterations: 10,
+    };
+    let h = 0.01;
+    let stats = integ.step(&sys, &mut state, None, h, &settings).unwrap();
+    assert_eq!(stats.iterations, 1);
+    assert!((state.v[0].y + G * h).abs() < 1e-12, "{}", state.v[0].y);
+    assert!((state.x[0].y + G * h * h).abs() < 1e-12, "{}", state.x[0].y);
+}
