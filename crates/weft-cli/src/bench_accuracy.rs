@@ -57,7 +57,7 @@ pub fn suite(quick: bool, out: &Path) -> Result<Summary, String> {
             }
         }
     }
-    // The run of stiffness k, method m and step h.
+    // The run of stiffness k, method m and step h (of the step sweep).
     let find = |k: f64, m: &str, h: f64| {
         runs.iter()
             .find(|r| r.param == k && r.method == m && (r.h - h).abs() < 1e-12)
@@ -148,24 +148,119 @@ pub fn suite(quick: bool, out: &Path) -> Result<Summary, String> {
             .filter(|r| r.method == "newton")
             .all(|r| r.status != Status::BlownUp),
     ));
-    println!();
-    for (c, ok) in &checks {
-        println!("{} {c}", if *ok { "ok  " } else { "FAIL" });
+    // The Newton tolerance: error and cost against how far each step is converged.
+    let tol_steps: &[f64] = if quick {
+        &[100.0]
+    } else {
+        &[25.0, 100.0, 400.0]
+    };
+    let tolerances: &[f64] = if quick {
+        &[1e-1, 1e-3, 1e-6]
+    } else {
+        &[1e-1, 3e-2, 1e-2, 3e-3, 1e-3, 1e-4, 1e-6, 1e-8]
+    };
+    let reference = sweep::pendulum_reference(stiff);
+    let newton = sweep::METHODS[2];
+    let mut tol_runs = Vec::new();
+    for &n in tol_steps {
+        for &tol in tolerances {
+            tol_runs.push(sweep::pendulum_run_to(
+                newton,
+                1.0 / n,
+                stiff,
+                reference,
+                tol,
+            ));
+        }
     }
-    std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
+    println!("\nNewton tolerance (k = {stiff:e} N): error [m] (iterations per step, wall time)");
+    println!(
+        "| tolerance [m/s] | {} |",
+        tol_steps
+            .iter()
+            .map(|n| format!("h = 1/{n}"))
+            .collect::<Vec<_>>()
+            .join(" | ")
+    );
+    println!("|---:|{}", "---:|".repeat(tol_steps.len()));
+    for &tol in tolerances {
+        let cells: Vec<String> = tol_steps
+            .iter()
+            .map(|&n| {
+                tol_runs
+                    .iter()
+                    .find(|r| r.param == tol && (r.h - 1.0 / n).abs() < 1e-12)
+                    .map_or("-".into(), |r| {
+                        format!(
+                            "{:.3e} ({:.2} it, {:.1} ms)",
+                            r.error,
+                            r.iterations,
+                            r.seconds * 1e3
+                        )
+                    })
+            })
+            .collect();
+        println!("| {tol:.0e} | {} |", cells.join(" | "));
+    }
+    // Theory: the loosest tolerance that still resolves a step's velocity change leaves the
+    // converged answer; at 1e-6 m/s (10⁻⁶ of the bob's speed) the run must match the
+    // 1e-10 one to 0.1 %, and iterations per step cannot fall as the tolerance tightens.
+    for &n in tol_steps {
+        let h = 1.0 / n;
+        let exact = runs
+            .iter()
+            .find(|r| r.param == stiff && r.method == "newton" && (r.h - h).abs() < 1e-12)
+            .map(|r| r.error);
+        let at = |tol: f64| {
+            tol_runs
+                .iter()
+                .find(|r| r.param == tol && (r.h - h).abs() < 1e-12)
+        };
+        if let (Some(exact), Some(r)) = (exact, at(1e-6)) {
+            checks.push((
+                format!("newton at tolerance 1e-6 m/s, h = 1/{n}: error {:.4e} within 0.1 % of the converged {exact:.4e}", r.error),
+                (r.error / exact - 1.0).abs() < 1e-3,
+            ));
+        }
+        if let (Some(exact), Some(r)) = (exact, at(1e-1)) {
+            // One Newton step is linearized implicit Euler: first order like the converged
+            // step, so a tolerance above the step's velocity change costs little accuracy
+            // (and must not leave the bob where it was).
+            checks.push((
+                format!(
+                    "newton at tolerance 1e-1 m/s, h = 1/{n}: error {:.4e} within 25 % of the converged",
+                    r.error
+                ),
+                (r.error / exact - 1.0).abs() < 0.25,
+            ));
+        }
+        let its: Vec<f64> = tolerances
+            .iter()
+            .filter_map(|&t| at(t).map(|r| r.iterations))
+            .collect();
+        checks.push((
+            format!(
+                "newton iterations per step grow as the tolerance tightens (h = 1/{n}: {its:.2?})"
+            ),
+            its.windows(2).all(|w| w[1] >= w[0]),
+        ));
+    }
+    sweep::print_checks(&checks);
     let summary = Summary { orders, checks };
-    let json = serde_json::json!({"runs": runs, "summary": summary, "inaccurate_above_m": sweep::INACCURATE});
-    for (name, text) in [
-        ("accuracy.csv", sweep::csv(&runs)),
-        (
-            "accuracy.json",
-            serde_json::to_string_pretty(&json).unwrap_or_default(),
-        ),
-    ] {
-        let p = out.join(name);
-        weft_graph::atomic_write(&p, text.as_bytes())
-            .map_err(|e| format!("cannot write {}: {e}", p.display()))?;
-    }
+    let mut all = runs.clone();
+    all.extend(tol_runs.iter().cloned());
+    sweep::write_runs(
+        out,
+        "accuracy",
+        &all,
+        serde_json::json!({"summary": summary, "inaccurate_above_m": sweep::INACCURATE}),
+    )?;
+    crate::charts::error_vs_time_by(
+        &tol_runs,
+        |r| format!("h = 1/{:.0}", 1.0 / r.h),
+        "Pendulum (k = 1e6 N), newton: error against wall time over the tolerance",
+        &out.join("accuracy_tolerance"),
+    )?;
     let stiff_runs: Vec<Run> = runs.iter().filter(|r| r.param == stiff).cloned().collect();
     crate::charts::error_vs_time(
         &stiff_runs,

@@ -75,9 +75,21 @@ fn log_range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
 /// Error against wall time, log–log, one curve per method (runs of one stiffness, in step
 /// order), the Pareto front ringed.
 pub fn error_vs_time(runs: &[Run], title: &str, stem: &Path) -> Result<(), String> {
+    error_vs_time_by(runs, |r| r.method.to_string(), title, stem)
+}
+
+/// Error against wall time, log–log, one curve per `group` of runs, the Pareto front
+/// ringed.
+pub fn error_vs_time_by(
+    runs: &[Run],
+    group: fn(&Run) -> String,
+    title: &str,
+    stem: &Path,
+) -> Result<(), String> {
     let curves = Curves {
         runs,
         title,
+        group,
         x: |r| r.seconds,
         x_desc: "wall time [s]",
         orders: None,
@@ -97,6 +109,7 @@ pub fn error_vs_step(
     let curves = Curves {
         runs,
         title,
+        group: |r| r.method.to_string(),
         x: |r| r.h,
         x_desc: "step h [s]",
         orders: Some(orders),
@@ -115,6 +128,7 @@ pub fn error_vs_size(
     let curves = Curves {
         runs,
         title,
+        group: |r| r.method.to_string(),
         x: |r| r.dx,
         x_desc: "segment or cell size [m]",
         orders: Some(orders),
@@ -127,6 +141,8 @@ pub fn error_vs_size(
 struct Curves<'a> {
     runs: &'a [Run],
     title: &'a str,
+    /// The curve a run belongs to (its method, unless said otherwise).
+    group: fn(&Run) -> String,
     x: fn(&Run) -> f64,
     x_desc: &'a str,
     /// Fitted orders to name in the legend.
@@ -163,12 +179,26 @@ fn curves_on<DB: DrawingBackend>(
         .y_label_formatter(&|v| format!("{v:.0e}"))
         .draw()
         .map_err(err)?;
-    for m in methods(c.runs) {
-        let color = method_color(m);
+    let mut groups: Vec<String> = Vec::new();
+    for r in c.runs {
+        let g = (c.group)(r);
+        if !groups.contains(&g) {
+            groups.push(g);
+        }
+    }
+    for (gi, m) in groups.iter().enumerate() {
+        let m = m.as_str();
+        let color = if groups.len() > 1 && methods(c.runs).len() == 1 {
+            // One method in several groups: tell the groups apart.
+            let (r, g, b) = Palette99::pick(gi).to_rgba().rgb();
+            RGBColor(r, g, b)
+        } else {
+            method_color(m)
+        };
         let mut pts: Vec<(f64, f64)> = c
             .runs
             .iter()
-            .filter(|r| r.method == m && r.error.is_finite() && x(r) > 0.0)
+            .filter(|r| (c.group)(r) == m && r.error.is_finite() && x(r) > 0.0)
             .map(|r| (x(r), r.error))
             .collect();
         pts.sort_by(|a, b| a.0.total_cmp(&b.0));

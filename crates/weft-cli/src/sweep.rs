@@ -138,6 +138,19 @@ pub fn pendulum_reference(k: f64) -> [f64; 3] {
 /// Runs the pendulum with `method` at step `h` (rounded so that whole steps reach 1 s) and
 /// stiffness `k`, against `reference` (the bob at 1 s).
 pub fn pendulum_run(method: (Method, &'static str), h: f64, k: f64, reference: [f64; 3]) -> Run {
+    pendulum_run_to(method, h, k, reference, 1e-10)
+}
+
+/// [`pendulum_run`] with Newton stopping at `tolerance` [m/s] (the largest velocity change
+/// of an iteration); the run's scene is `pendulum_tolerance` and its parameter the
+/// tolerance unless that is the default 10⁻¹⁰.
+pub fn pendulum_run_to(
+    method: (Method, &'static str),
+    h: f64,
+    k: f64,
+    reference: [f64; 3],
+    tolerance: f64,
+) -> Run {
     let steps = (DURATION / h).round().max(1.0) as usize;
     let h = DURATION / steps as f64;
     let mut sys = SolidSystem::new(vec![1.0, 1.0]);
@@ -154,7 +167,7 @@ pub fn pendulum_run(method: (Method, &'static str), h: f64, k: f64, reference: [
     };
     let settings = Settings {
         method: method.0,
-        tolerance: 1e-10,
+        tolerance,
         max_iterations: 100,
     };
     let t = Instant::now();
@@ -182,13 +195,22 @@ pub fn pendulum_run(method: (Method, &'static str), h: f64, k: f64, reference: [
     } else {
         (state.x[1] - nalgebra::Vector3::from(reference)).norm()
     };
+    let swept = tolerance != 1e-10;
     Run {
-        scene: "pendulum",
+        scene: if swept {
+            "pendulum_tolerance"
+        } else {
+            "pendulum"
+        },
         method: method.1,
         h,
         dx: f64::NAN,
-        param: k,
-        param_name: "rod stiffness k [N]",
+        param: if swept { tolerance } else { k },
+        param_name: if swept {
+            "Newton tolerance [m/s]"
+        } else {
+            "rod stiffness k [N]"
+        },
         error,
         error_unit: "m",
         iterations: if method.0 == Method::Explicit {
@@ -213,13 +235,15 @@ pub fn fitted_order(points: &[(f64, f64)]) -> f64 {
 }
 
 /// For each run, whether it is on the Pareto front of (wall time, error) among the finite
-/// runs: no other run is both faster and more accurate.
+/// runs of its scene and parameter: no other run is both faster and more accurate.
 pub fn pareto_front(runs: &[Run]) -> Vec<bool> {
     runs.iter()
         .map(|r| {
             r.error.is_finite()
                 && !runs.iter().any(|o| {
                     o.error.is_finite()
+                        && o.scene == r.scene
+                        && o.param.to_bits() == r.param.to_bits()
                         && o.seconds <= r.seconds
                         && o.error <= r.error
                         && (o.seconds < r.seconds || o.error < r.error)
