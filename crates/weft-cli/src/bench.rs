@@ -3,6 +3,7 @@
 //! Suite `graph` measures the engine's own overhead with trivial nodes: a clean re-pull of an
 //! output (everything cached), a re-pull after dirtying the root of a chain (every node
 //! re-runs) or one leaf of a fan-in (only the sum re-runs), and loading + validating a file.
+//! The sweep suites (`accuracy`, `convergence`, `coupling`) are in their own modules.
 
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -13,14 +14,17 @@ use weft_graph::{Context, Graph, Registry, load_str};
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {
     /// Suite to run: `graph` (engine overhead), `solid` (cloth and hair solver), `fluid`
-    /// (pressure solve against memory bandwidth) or `accuracy` (error against step size and
-    /// wall time per method, and stability maps; writes CSV and JSON into `--out`).
+    /// (pressure solve against memory bandwidth), or a sweep: `accuracy` (solid integrators
+    /// over step, stiffness and Newton tolerance: error against step and wall time, stability
+    /// maps), `convergence` (verification scenes under refinement, with fitted orders) or
+    /// `coupling` (coupling methods over step and drag-to-mass ratio). Sweeps write CSV,
+    /// JSON and charts (PNG, SVG) into `--out`.
     suite: String,
-    /// Fewer repetitions (for CI smoke runs); `accuracy` then also fails (exit 1) when a
-    /// fact theory fixes does not hold.
+    /// Fewer repetitions or a smaller sweep (for CI); a sweep then also fails (exit 1) when
+    /// a fact theory fixes does not hold.
     #[arg(long)]
     quick: bool,
-    /// Directory for the sweep suites' outputs (CSV, JSON).
+    /// Directory for the sweep suites' outputs (CSV, JSON, charts).
     #[arg(long, value_name = "DIR", default_value = "bench-out")]
     out: std::path::PathBuf,
     /// Also write the results as JSON to this file.

@@ -253,7 +253,11 @@ pub fn suite(quick: bool, out: &Path) -> Result<Summary, String> {
         out,
         "accuracy",
         &all,
-        serde_json::json!({"summary": summary, "inaccurate_above_m": sweep::INACCURATE}),
+        serde_json::json!({
+            "orders": summary.orders,
+            "checks": summary.checks,
+            "inaccurate_above_m": sweep::INACCURATE,
+        }),
     )?;
     crate::charts::error_vs_time_by(
         &tol_runs,
@@ -287,7 +291,7 @@ pub fn suite(quick: bool, out: &Path) -> Result<Summary, String> {
     )?;
     println!(
         "\nwrote {} runs and charts (PNG, SVG) to {}",
-        runs.len(),
+        all.len(),
         out.display()
     );
     Ok(summary)

@@ -3,7 +3,7 @@
 //! maps. Text is set in the bundled DejaVu Sans (assets/, Bitstream Vera licence), so the
 //! charts need no system fonts.
 
-use crate::sweep::{Run, Status, pareto_front};
+use crate::sweep::{Run, Status, pareto_front_by};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
@@ -66,7 +66,10 @@ fn log_range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
         .filter(|v| v.is_finite() && *v > 0.0)
         .fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(v), b.max(v)));
     if lo.is_finite() && hi > 0.0 {
-        (lo / 2.0, hi * 2.0)
+        // Whole decades (at least two), so the log axis labels decades, not crowded
+        // in-between values.
+        let (a, b) = ((lo / 1.5).log10().floor(), (hi * 1.5).log10().ceil());
+        (10f64.powf(a), 10f64.powf(b.max(a + 2.0)))
     } else {
         (1e-6, 1.0)
     }
@@ -218,7 +221,8 @@ fn curves_on<DB: DrawingBackend>(
             .map_err(err)?;
     }
     if c.pareto {
-        let front = pareto_front(c.runs);
+        // The chart's runs are comparable by choice.
+        let front = pareto_front_by(c.runs, |_, _| true);
         chart
             .draw_series(
                 c.runs

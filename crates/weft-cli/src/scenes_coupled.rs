@@ -1,10 +1,17 @@
-//! Coupled verification scenes for the sweeps: a light strand rising in strong drag (the
-//! coupling stability map) and a settling porous sheet.
+//! Coupled verification scenes for the sweeps, each against a converged reference (the same
+//! scene stepped with Newton coupling at h = 1/1600 s to 10⁻⁸ m/s): the error of a run is the
+//! largest distance of the solid's mean vertical velocity from the reference's at the
+//! sample times, relative to the reference's largest.
+//! - **light strand**: a strand (radius 2 mm, 12 cm, density ρ_s) rising in a closed 0.2 m
+//!   box of water (2 cm cells) with drag scale ξ_D: the coupling stability map, over the
+//!   drag-to-mass ratio K/m = k/ρ_s (k the drag per unit solid volume).
+//! - **settling sheet**: a porous sheet (1500 kg/m³, 0.2 mm, D = 0.1 mm) spanning a box of
+//!   water periodic across, falling towards the Darcy terminal velocity Δρg/k (VERIFY.md).
 
 use crate::sweep::{Run, Status};
 use nalgebra::Vector3;
 use std::time::Instant;
-use weft_fluid::{Boundaries, Domain, DragParams, FluidProperties, MacGrid};
+use weft_fluid::{Axis, Boundaries, Domain, DragParams, FluidProperties, MacGrid};
 use weft_sim::{
     CoupledSettings, CoupledStepper, Coupling, DragElement, DragShape, RelaxationMethod,
 };
@@ -23,6 +30,56 @@ const G: f64 = 9.81;
 /// strand, filling half of them, caps solid fractions and makes every partitioned scheme
 /// fragile).
 const STRAND_RADIUS: f64 = 2e-3;
+/// The interval at which velocities are compared with the reference [s] (every swept step
+/// divides it).
+const SAMPLE: f64 = 0.04;
+/// Relative error above which a coupled run is inaccurate.
+pub const COUPLED_INACCURATE: f64 = 0.05;
+
+/// A coupled verification scene.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Scene {
+    /// The light strand of density [kg/m³] and drag scale ξ_D.
+    Strand { density: f64, xi_d: f64 },
+    /// The settling sheet.
+    Sheet,
+}
+
+type Coupled = (SolidSystem, State, Vec<DragElement>, MacGrid);
+
+impl Scene {
+    fn name(self) -> &'static str {
+        match self {
+            Scene::Strand { .. } => "light_strand",
+            Scene::Sheet => "settling_sheet",
+        }
+    }
+
+    /// How long it runs [s].
+    pub fn duration(self) -> f64 {
+        match self {
+            Scene::Strand { .. } => 0.2,
+            Scene::Sheet => 0.32,
+        }
+    }
+
+    /// The swept parameter and its name.
+    fn param(self) -> (f64, &'static str) {
+        match self {
+            Scene::Strand { density, xi_d } => {
+                (strand_drag(xi_d) / density, "drag-to-mass ratio K/m [1/s]")
+            }
+            Scene::Sheet => (sheet_drag() / SHEET_DENSITY, "drag-to-mass ratio K/m [1/s]"),
+        }
+    }
+
+    fn build(self) -> Coupled {
+        match self {
+            Scene::Strand { density, xi_d } => light_strand(density, xi_d),
+            Scene::Sheet => settling_sheet(),
+        }
+    }
+}
 
 /// Drag per unit solid volume k [N s/m⁴] of the strand's linear branch for ξ_D:
 /// (μ/D²)·ξ_D ξ⊥/10⁴ with ξ⊥ = 1.
@@ -31,30 +88,32 @@ pub fn strand_drag(xi_d: f64) -> f64 {
     FluidProperties::WATER.viscosity / (d * d) * xi_d / 1e4
 }
 
-/// How long the strand rises [s], and the interval at which its speed is compared with the
-/// reference [s] (every swept step divides it).
-pub const STRAND_DURATION: f64 = 0.2;
-const STRAND_SAMPLE: f64 = 0.04;
+const SHEET_DENSITY: f64 = 1500.0;
+const SHEET_DIAMETER: f64 = 1e-4;
 
-/// The strand's mean vertical velocity every [`STRAND_SAMPLE`] s over [`STRAND_DURATION`],
-/// with step `h` and coupling `method`; the coupling iterations per step; None once a step
-/// fails or the strand runs away (faster than 10 m/s).
-fn strand_history(
-    method: Coupling,
-    relaxation: RelaxationMethod,
-    tolerance: f64,
-    h: f64,
-    density: f64,
-    xi_d: f64,
-) -> (Option<Vec<f64>>, f64) {
-    let steps = (STRAND_DURATION / h).round().max(1.0) as usize;
-    let every = (STRAND_SAMPLE / h).round().max(1.0) as usize;
-    let (mut sys, mut state, elements, mut grid) = light_strand(density, xi_d);
+/// The sheet's drag per unit solid volume (ξ_D = 10⁴, ξ⊥ = 1): μ/D².
+fn sheet_drag() -> f64 {
+    FluidProperties::WATER.viscosity / (SHEET_DIAMETER * SHEET_DIAMETER)
+}
+
+/// The Darcy terminal velocity of the sheet, Δρ g/k [m/s] (the fall the sheet's α² ≈ 0.99
+/// slows by 1 %).
+pub fn sheet_terminal() -> f64 {
+    (SHEET_DENSITY - FluidProperties::WATER.density) * G / sheet_drag()
+}
+
+/// The solid's mean vertical velocity every [`SAMPLE`] s over the scene's duration, with
+/// step `h` and coupling `method`; the coupling iterations per step; None once a step fails
+/// or the solid runs away (faster than 10 m/s).
+fn history(scene: Scene, method: Coupling, tolerance: f64, h: f64) -> (Option<Vec<f64>>, f64) {
+    let steps = (scene.duration() / h).round().max(1.0) as usize;
+    let every = (SAMPLE / h).round().max(1.0) as usize;
+    let (mut sys, mut state, elements, mut grid) = scene.build();
     let settings = CoupledSettings {
         method,
         tolerance,
         max_iterations: 100,
-        relaxation,
+        relaxation: RelaxationMethod::Aitken,
         gravity: [0.0, -G, 0.0],
         ..Default::default()
     };
@@ -80,37 +139,24 @@ fn strand_history(
     (Some(out), iterations as f64 / steps as f64)
 }
 
-/// The converged reference for the strand of `density` and drag scale `xi_d`: Newton
-/// coupling (Aitken) at h = 1/1600 s to 10⁻⁸ m/s. None when even that fails.
-pub fn strand_reference(density: f64, xi_d: f64) -> Option<Vec<f64>> {
-    strand_history(
-        Coupling::Newton,
-        RelaxationMethod::Aitken,
-        1e-8,
-        1.0 / 1600.0,
-        density,
-        xi_d,
-    )
-    .0
+/// The converged reference of `scene`: Newton coupling (Aitken) at h = 1/1600 s to
+/// 10⁻⁸ m/s. None when even that fails.
+pub fn reference(scene: Scene) -> Option<Vec<f64>> {
+    history(scene, Coupling::Newton, 1e-8, 1.0 / 1600.0).0
 }
 
-/// A light strand (radius 2 mm, 12 cm long, density `density`) rising in a closed box of
-/// water, with drag scale `xi_d`, at step `h` with coupling `method`. Error: the largest
-/// distance of its mean vertical velocity from the `reference`'s at the sample times,
-/// relative to the reference's largest; inaccurate above 5 %. The swept parameter is the
-/// drag-to-mass ratio K/m = k/ρ_s [1/s] (k the drag per unit solid volume).
-pub fn light_strand_run(
+/// `scene` at step `h` with coupling `method` against its `reference`, inaccurate above
+/// [`COUPLED_INACCURATE`].
+pub fn coupled_run(
+    scene: Scene,
     method: (Coupling, &'static str),
     h: f64,
-    density: f64,
-    xi_d: f64,
     reference: Option<&[f64]>,
 ) -> Run {
     let t = Instant::now();
-    let (history, iterations) =
-        strand_history(method.0, RelaxationMethod::Aitken, 1e-6, h, density, xi_d);
+    let (history, iterations) = history(scene, method.0, 1e-6, h);
     let seconds = t.elapsed().as_secs_f64();
-    let steps = (STRAND_DURATION / h).round().max(1.0) as usize;
+    let steps = (scene.duration() / h).round().max(1.0) as usize;
     let error = match (&history, reference) {
         (Some(v), Some(r)) if v.len() == r.len() => {
             let scale = r.iter().fold(0.0f64, |m, x| m.max(x.abs()));
@@ -121,13 +167,14 @@ pub fn light_strand_run(
         }
         _ => f64::NAN,
     };
+    let (param, param_name) = scene.param();
     Run {
-        scene: "light_strand",
+        scene: scene.name(),
         method: method.1,
-        h: STRAND_DURATION / steps as f64,
+        h: scene.duration() / steps as f64,
         dx: 0.02,
-        param: strand_drag(xi_d) / density,
-        param_name: "drag-to-mass ratio K/m [1/s]",
+        param,
+        param_name,
         error,
         error_unit: "relative",
         iterations,
@@ -137,15 +184,10 @@ pub fn light_strand_run(
         status: if reference.is_none() && history.is_some() {
             Status::Stable
         } else {
-            Status::of(history.is_none(), error, STRAND_INACCURATE)
+            Status::of(history.is_none(), error, COUPLED_INACCURATE)
         },
     }
 }
-
-/// Relative error above which a strand run is inaccurate.
-pub const STRAND_INACCURATE: f64 = 0.05;
-
-type Coupled = (SolidSystem, State, Vec<DragElement>, MacGrid);
 
 /// The strand (8 segments along x at mid-height) and its 0.2 m box of 2 cm cells.
 fn light_strand(density: f64, xi_d: f64) -> Coupled {
@@ -182,6 +224,60 @@ fn light_strand(density: f64, xi_d: f64) -> Coupled {
     let state = State {
         x,
         v: vec![Vector3::zeros(); n + 1],
+    };
+    (sys, state, elements, grid)
+}
+
+/// A flat 5 × 5 vertex sheet, 0.2 mm thick, over the whole 0.1 × 0.1 m x–z extent of a
+/// 0.1 × 0.2 × 0.1 m box of water (periodic in x and z, walls above and below) at mid-height;
+/// no elastic terms (every vertex feels the same forces per mass, so it stays flat).
+fn settling_sheet() -> Coupled {
+    let b = Boundaries::periodic(&[Axis::X, Axis::Z]);
+    let d = Domain::new([0.0; 3], [0.1, 0.2, 0.1], 0.02, b, None).expect("a valid box");
+    let grid = MacGrid::new(d);
+    let params = DragParams {
+        xi_d: 1e4,
+        xi_perp: 1.0,
+        xi_par: 1.0,
+        diameter: SHEET_DIAMETER,
+        ..Default::default()
+    };
+    let (n, thickness) = (5, 2e-4);
+    let area_cell = (0.1 / (n - 1) as f64).powi(2);
+    let mut x = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            x.push(Vector3::new(
+                0.1 * i as f64 / (n - 1) as f64,
+                0.1,
+                0.1 * j as f64 / (n - 1) as f64,
+            ));
+        }
+    }
+    let mut mass = vec![0.0; n * n];
+    let mut elements = Vec::new();
+    let id = |a: usize, b: usize| (b * n + a) as u32;
+    for j in 0..n - 1 {
+        for i in 0..n - 1 {
+            for t in [
+                [id(i, j), id(i, j + 1), id(i + 1, j)],
+                [id(i + 1, j), id(i, j + 1), id(i + 1, j + 1)],
+            ] {
+                for &v in &t {
+                    mass[v as usize] += SHEET_DENSITY * thickness * 0.5 * area_cell / 3.0;
+                }
+                elements.push(DragElement {
+                    shape: DragShape::Triangle(t, thickness),
+                    params,
+                });
+            }
+        }
+    }
+    let mut sys = SolidSystem::new(mass);
+    sys.gravity = Vector3::new(0.0, -G, 0.0);
+    let state = State {
+        v: vec![Vector3::zeros(); x.len()],
+        x,
     };
     (sys, state, elements, grid)
 }

@@ -234,22 +234,34 @@ pub fn fitted_order(points: &[(f64, f64)]) -> f64 {
     sxy / sxx
 }
 
+/// Whether two runs belong on one Pareto front: the same scene, and the same parameter
+/// where that parameter changes the problem (stiffness, drag); a tolerance sweep compares
+/// across tolerances, which is its point.
+pub fn comparable(a: &Run, b: &Run) -> bool {
+    a.scene == b.scene
+        && (a.param.to_bits() == b.param.to_bits() || a.param_name.contains("tolerance"))
+}
+
 /// For each run, whether it is on the Pareto front of (wall time, error) among the finite
-/// runs of its scene and parameter: no other run is both faster and more accurate.
-pub fn pareto_front(runs: &[Run]) -> Vec<bool> {
+/// runs `same` says it compares with: no such run is both faster and more accurate.
+pub fn pareto_front_by(runs: &[Run], same: fn(&Run, &Run) -> bool) -> Vec<bool> {
     runs.iter()
         .map(|r| {
             r.error.is_finite()
                 && !runs.iter().any(|o| {
                     o.error.is_finite()
-                        && o.scene == r.scene
-                        && o.param.to_bits() == r.param.to_bits()
+                        && same(o, r)
                         && o.seconds <= r.seconds
                         && o.error <= r.error
                         && (o.seconds < r.seconds || o.error < r.error)
                 })
         })
         .collect()
+}
+
+/// [`pareto_front_by`] among [`comparable`] runs.
+pub fn pareto_front(runs: &[Run]) -> Vec<bool> {
+    pareto_front_by(runs, comparable)
 }
 
 /// The runs as CSV (a header, then a row per run, with the Pareto flag).

@@ -226,22 +226,15 @@ fn bench_graph_quick_runs() {
     assert_eq!(o.status.code(), Some(2));
 }
 
-/// `weft bench accuracy --quick` (the CI run): exits 0 only when what theory fixes holds
-/// (first-order convergence within 0.8–1.2 for every method; explicit blows up above 1.2 ×
-/// its stable step 2/ω and holds below 0.5 × it; newton never blows up), and writes every run
-/// as CSV and JSON and the three charts as PNG and SVG.
-#[test]
-fn bench_accuracy_quick_asserts_theory_and_writes_runs_and_charts() {
+/// Runs `weft bench SUITE --quick` into a scratch directory and checks what every sweep
+/// suite promises: exit 0 only when the facts theory fixes hold, every run as CSV (`rows`
+/// of them, with the documented header) and JSON with every check passed, and each of
+/// `charts` as PNG and SVG.
+fn quick_suite(suite: &str, rows: usize, charts: &[&str]) {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("bench");
     let o = weft(
-        &[
-            "bench",
-            "accuracy",
-            "--quick",
-            "--out",
-            out.to_str().unwrap(),
-        ],
+        &["bench", suite, "--quick", "--out", out.to_str().unwrap()],
         &root(),
     );
     assert!(
@@ -250,20 +243,19 @@ fn bench_accuracy_quick_asserts_theory_and_writes_runs_and_charts() {
         text(&o.stdout),
         text(&o.stderr)
     );
-    let csv = std::fs::read_to_string(out.join("accuracy.csv")).unwrap();
-    assert!(csv.starts_with("scene,method,h,stiffness,error,seconds,steps,status,pareto\n"));
-    // Quick: 4 stiffnesses (three mapped and the convergence one) × 3 methods × 5 steps.
-    assert_eq!(csv.lines().count(), 1 + 4 * 3 * 5);
+    let csv = std::fs::read_to_string(out.join(format!("{suite}.csv"))).unwrap();
+    assert!(csv.starts_with(
+        "scene,method,h,dx,param,param_name,error,error_unit,iterations,seconds,steps,status,pareto\n"
+    ));
+    assert_eq!(csv.lines().count(), 1 + rows, "{csv}");
     let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("accuracy.json")).unwrap()).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(out.join(format!("{suite}.json"))).unwrap())
+            .unwrap();
+    assert_eq!(json["runs"].as_array().unwrap().len(), rows);
     let checks = json["summary"]["checks"].as_array().unwrap();
-    assert!(checks.len() >= 6);
+    assert!(checks.len() >= 4, "{checks:?}");
     assert!(checks.iter().all(|c| c[1] == true), "{checks:?}");
-    for chart in [
-        "accuracy_error_time",
-        "accuracy_error_step",
-        "accuracy_stability",
-    ] {
+    for chart in charts {
         for ext in ["png", "svg"] {
             let p = out.join(format!("{chart}.{ext}"));
             assert!(
@@ -274,4 +266,47 @@ fn bench_accuracy_quick_asserts_theory_and_writes_runs_and_charts() {
             );
         }
     }
+}
+
+/// `weft bench accuracy --quick`: first order within 0.8–1.2 for every method; explicit
+/// blows up above 1.2 × its stable step 2/ω and holds below 0.5 × it; newton never blows
+/// up; the Newton tolerance's checks. Runs: 4 stiffnesses (three mapped and the convergence
+/// one) × 3 methods × 5 steps, and 3 tolerances at one step.
+#[test]
+fn bench_accuracy_quick_asserts_theory_and_writes_runs_and_charts() {
+    quick_suite(
+        "accuracy",
+        4 * 3 * 5 + 3,
+        &[
+            "accuracy_error_time",
+            "accuracy_error_step",
+            "accuracy_stability",
+            "accuracy_tolerance",
+        ],
+    );
+}
+
+/// `weft bench convergence --quick`: the orders of the cantilever, catenary and
+/// Taylor–Green in their bands, the shell strip within 0.5 %, the Darcy slab exact. Runs:
+/// 3 cantilevers, 3 catenaries, 2 strips, 2 Taylor–Green, 2 slabs.
+#[test]
+fn bench_convergence_quick_asserts_orders_and_writes_runs_and_chart() {
+    quick_suite("convergence", 12, &["convergence_error_size"]);
+}
+
+/// `weft bench coupling --quick`: newton never blows up and is first order; staggered fails
+/// where h·K/m ≥ 200 and newton holds there; the settling sheet falls at Darcy's speed.
+/// Runs: 3 drag scales × 3 methods × 3 steps for the strand, 3 × 3 for the sheet.
+#[test]
+fn bench_coupling_quick_maps_where_staggered_fails_and_newton_holds() {
+    quick_suite(
+        "coupling",
+        27 + 9,
+        &[
+            "coupling_stability",
+            "coupling_error_step",
+            "coupling_error_time",
+            "coupling_sheet_error_step",
+        ],
+    );
 }
