@@ -95,14 +95,7 @@ pub fn suite(quick: bool, out: &Path) -> Result<Summary, String> {
         };
         orders.push((m.1.to_string(), order));
     }
-    println!(
-        "\nobserved orders: {}",
-        orders
-            .iter()
-            .map(|(m, o)| format!("{m} {o:.3}"))
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
+    sweep::print_orders(&orders);
     println!("\nstability map (S stable, I inaccurate > 1 cm, X blown up): rows k [N], columns h");
     for m in &sweep::METHODS {
         println!("{}:", m.1);
@@ -271,7 +264,8 @@ pub fn suite(quick: bool, out: &Path) -> Result<Summary, String> {
         "Pendulum (k = 1e6 N): error at 1 s against wall time",
         &out.join("accuracy_error_time"),
     )?;
-    crate::charts::error_vs_step(
+    crate::charts::error_vs(
+        crate::charts::Across::Step,
         &stiff_runs,
         &summary.orders,
         "Pendulum (k = 1e6 N): error at 1 s against step size",

@@ -5,7 +5,8 @@
 //! `--quick` asserts what the discretizations fix: the rod cantilever and the catenary
 //! converge at second order (band 1.7–2.3), Taylor–Green at first order (0.8–1.3:
 //! semi-Lagrangian advection at fixed CFL), the shell strip is within 0.5 % of beam theory at
-//! every size, and the Darcy slab's pressure drop is exact (below 10⁻⁶) at every size.
+//! every size, the membrane follows the linear law to 0.1 % at every size, and the Darcy
+//! slab's pressure drop is exact (below 10⁻⁶) at every size.
 
 use crate::scenes_resolution as scenes;
 use crate::sweep::{self, Checks, Run};
@@ -27,6 +28,10 @@ pub fn suite(quick: bool, out: &Path) -> Result<Checks, String> {
     let strips: &[usize] = if quick { &[11, 21] } else { &[11, 21, 41] };
     for &nx in strips {
         runs.push(scenes::shell_strip(nx));
+    }
+    let sheets: &[usize] = if quick { &[5, 11] } else { &[5, 11, 21] };
+    for &n in sheets {
+        runs.push(scenes::membrane(n));
     }
     let cells: &[usize] = if quick { &[16, 32] } else { &[16, 32, 64, 128] };
     for &n in cells {
@@ -58,14 +63,7 @@ pub fn suite(quick: bool, out: &Path) -> Result<Checks, String> {
             r.scene, r.dx, r.error, r.seconds
         );
     }
-    println!(
-        "\nobserved orders: {}",
-        orders
-            .iter()
-            .map(|(m, o)| format!("{m} {o:.3}"))
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
+    sweep::print_orders(&orders);
     let order = |n: &str| {
         orders
             .iter()
@@ -91,6 +89,10 @@ pub fn suite(quick: bool, out: &Path) -> Result<Checks, String> {
         all("shell_strip", &|e| e < 5e-3),
     ));
     checks.push((
+        "membrane: the linear law to 0.1 % at every size (strain 1e-4)".into(),
+        all("membrane", &|e| e < 1e-3),
+    ));
+    checks.push((
         "darcy_slab exact (below 1e-6) at every size".into(),
         all("darcy_slab", &|e| e < 1e-6),
     ));
@@ -101,7 +103,8 @@ pub fn suite(quick: bool, out: &Path) -> Result<Checks, String> {
         &runs,
         serde_json::json!({"orders": orders, "checks": checks}),
     )?;
-    crate::charts::error_vs_size(
+    crate::charts::error_vs(
+        crate::charts::Across::Size,
         &runs,
         &orders,
         "Relative error against analytic references under refinement",

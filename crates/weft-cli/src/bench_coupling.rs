@@ -135,7 +135,7 @@ pub fn suite(quick: bool, out: &Path) -> Result<Checks, String> {
             ));
         }
     }
-    let terminal = scenes_coupled::sheet_terminal();
+    let terminal = weft_sim::verify::sheet_terminal();
     let fall = sheet_ref
         .as_ref()
         .and_then(|r| r.last())
@@ -218,13 +218,15 @@ pub fn suite(quick: bool, out: &Path) -> Result<Checks, String> {
             (m.1.to_string(), o)
         })
         .collect();
-    crate::charts::error_vs_step(
+    crate::charts::error_vs(
+        crate::charts::Across::Step,
         &strongest_runs,
         &orders,
         &format!("{title}: error against step"),
         &out.join("coupling_error_step"),
     )?;
-    crate::charts::error_vs_step(
+    crate::charts::error_vs(
+        crate::charts::Across::Step,
         &sheet,
         &sheet_orders,
         "Settling sheet: error against step",

@@ -22,6 +22,7 @@ fn method_color(m: &str) -> RGBColor {
         "shell_strip" => RGBColor(127, 127, 127),
         "taylor_green" => RGBColor(255, 127, 14),
         "darcy_slab" => RGBColor(23, 190, 207),
+        "membrane" => RGBColor(188, 189, 34),
         _ => RGBColor(227, 119, 194),
     }
 }
@@ -101,39 +102,34 @@ pub fn error_vs_time_by(
     both!(stem, SIZE, curves_on(&curves))
 }
 
-/// Error against step size, log–log, one curve per method with its fitted order in the
-/// legend.
-pub fn error_vs_step(
-    runs: &[Run],
-    orders: &[(String, f64)],
-    title: &str,
-    stem: &Path,
-) -> Result<(), String> {
-    let curves = Curves {
-        runs,
-        title,
-        group: |r| r.method.to_string(),
-        x: |r| r.h,
-        x_desc: "step h [s]",
-        orders: Some(orders),
-        pareto: false,
-    };
-    both!(stem, SIZE, curves_on(&curves))
+/// What a convergence chart puts across: the step or the cell size.
+#[derive(Clone, Copy, Debug)]
+pub enum Across {
+    /// The time step h.
+    Step,
+    /// The segment or cell size.
+    Size,
 }
 
-/// Error against segment or cell size, log–log, one curve per scene with its fitted order.
-pub fn error_vs_size(
+/// Error against step or cell size, log–log, one curve per method (or scene) with its
+/// fitted order in the legend.
+pub fn error_vs(
+    across: Across,
     runs: &[Run],
     orders: &[(String, f64)],
     title: &str,
     stem: &Path,
 ) -> Result<(), String> {
+    let (x, x_desc): (fn(&Run) -> f64, &str) = match across {
+        Across::Step => (|r| r.h, "step h [s]"),
+        Across::Size => (|r| r.dx, "segment or cell size [m]"),
+    };
     let curves = Curves {
         runs,
         title,
         group: |r| r.method.to_string(),
-        x: |r| r.dx,
-        x_desc: "segment or cell size [m]",
+        x,
+        x_desc,
         orders: Some(orders),
         pareto: false,
     };

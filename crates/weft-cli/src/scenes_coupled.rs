@@ -9,14 +9,10 @@
 //!   water periodic across, falling towards the Darcy terminal velocity Δρg/k (VERIFY.md).
 
 use crate::sweep::{Run, Status};
-use nalgebra::Vector3;
 use std::time::Instant;
-use weft_fluid::{Axis, Boundaries, Domain, DragParams, FluidProperties, MacGrid};
-use weft_sim::{
-    CoupledSettings, CoupledStepper, Coupling, DragElement, DragShape, RelaxationMethod,
-};
-use weft_solid::energy::RodStretch;
-use weft_solid::{SolidSystem, State};
+use weft_fluid::FluidProperties;
+use weft_sim::verify::{self, G};
+use weft_sim::{CoupledSettings, CoupledStepper, Coupling, RelaxationMethod};
 
 /// The coupling methods swept, with their names.
 pub const COUPLINGS: [(Coupling, &str); 3] = [
@@ -25,7 +21,6 @@ pub const COUPLINGS: [(Coupling, &str); 3] = [
     (Coupling::Newton, "newton"),
 ];
 
-const G: f64 = 9.81;
 /// The strand's radius: 2 mm, so it fills about 3 % of the 2 cm cells it crosses (a thick
 /// strand, filling half of them, caps solid fractions and makes every partitioned scheme
 /// fragile).
@@ -44,8 +39,6 @@ pub enum Scene {
     /// The settling sheet.
     Sheet,
 }
-
-type Coupled = (SolidSystem, State, Vec<DragElement>, MacGrid);
 
 impl Scene {
     fn name(self) -> &'static str {
@@ -69,37 +62,26 @@ impl Scene {
             Scene::Strand { density, xi_d } => {
                 (strand_drag(xi_d) / density, "drag-to-mass ratio K/m [1/s]")
             }
-            Scene::Sheet => (sheet_drag() / SHEET_DENSITY, "drag-to-mass ratio K/m [1/s]"),
+            Scene::Sheet => (
+                (verify::SHEET_DENSITY - FluidProperties::WATER.density) * verify::G
+                    / verify::sheet_terminal()
+                    / verify::SHEET_DENSITY,
+                "drag-to-mass ratio K/m [1/s]",
+            ),
         }
     }
 
-    fn build(self) -> Coupled {
+    fn build(self) -> verify::CoupledScene {
         match self {
-            Scene::Strand { density, xi_d } => light_strand(density, xi_d),
-            Scene::Sheet => settling_sheet(),
+            Scene::Strand { density, xi_d } => verify::light_strand(STRAND_RADIUS, density, xi_d),
+            Scene::Sheet => verify::settling_sheet(2e-4),
         }
     }
 }
 
-/// Drag per unit solid volume k [N s/m⁴] of the strand's linear branch for ξ_D:
-/// (μ/D²)·ξ_D ξ⊥/10⁴ with ξ⊥ = 1.
+/// Drag per unit solid volume k [N s/m⁴] of the strand for ξ_D ([`verify::strand_drag`]).
 pub fn strand_drag(xi_d: f64) -> f64 {
-    let d = 2.0 * STRAND_RADIUS;
-    FluidProperties::WATER.viscosity / (d * d) * xi_d / 1e4
-}
-
-const SHEET_DENSITY: f64 = 1500.0;
-const SHEET_DIAMETER: f64 = 1e-4;
-
-/// The sheet's drag per unit solid volume (ξ_D = 10⁴, ξ⊥ = 1): μ/D².
-fn sheet_drag() -> f64 {
-    FluidProperties::WATER.viscosity / (SHEET_DIAMETER * SHEET_DIAMETER)
-}
-
-/// The Darcy terminal velocity of the sheet, Δρ g/k [m/s] (the fall the sheet's α² ≈ 0.99
-/// slows by 1 %).
-pub fn sheet_terminal() -> f64 {
-    (SHEET_DENSITY - FluidProperties::WATER.density) * G / sheet_drag()
+    verify::strand_drag(STRAND_RADIUS, xi_d)
 }
 
 /// The solid's mean vertical velocity every [`SAMPLE`] s over the scene's duration, with
@@ -187,97 +169,4 @@ pub fn coupled_run(
             Status::of(history.is_none(), error, COUPLED_INACCURATE)
         },
     }
-}
-
-/// The strand (8 segments along x at mid-height) and its 0.2 m box of 2 cm cells.
-fn light_strand(density: f64, xi_d: f64) -> Coupled {
-    let d = Domain::new([0.0; 3], [0.2; 3], 0.02, Boundaries::closed(), None).expect("a valid box");
-    let grid = MacGrid::new(d);
-    let (n, len, start) = (8, 0.12, [0.04, 0.1, 0.1]);
-    let area = std::f64::consts::PI * STRAND_RADIUS * STRAND_RADIUS;
-    let l = len / n as f64;
-    let mut mass = vec![density * area * l; n + 1];
-    mass[0] *= 0.5;
-    mass[n] *= 0.5;
-    let mut sys = SolidSystem::new(mass);
-    sys.gravity = Vector3::new(0.0, -G, 0.0);
-    let params = DragParams {
-        xi_d,
-        diameter: 2.0 * STRAND_RADIUS,
-        ..Default::default()
-    };
-    let mut elements = Vec::new();
-    for i in 0..n as u32 {
-        sys.elements.stretches.push(RodStretch {
-            v: [i, i + 1],
-            rest_length: l,
-            k: 10.0,
-        });
-        elements.push(DragElement {
-            shape: DragShape::Segment([i, i + 1], area),
-            params,
-        });
-    }
-    let x = (0..=n)
-        .map(|i| Vector3::new(start[0] + i as f64 * l, start[1], start[2]))
-        .collect();
-    let state = State {
-        x,
-        v: vec![Vector3::zeros(); n + 1],
-    };
-    (sys, state, elements, grid)
-}
-
-/// A flat 5 × 5 vertex sheet, 0.2 mm thick, over the whole 0.1 × 0.1 m x–z extent of a
-/// 0.1 × 0.2 × 0.1 m box of water (periodic in x and z, walls above and below) at mid-height;
-/// no elastic terms (every vertex feels the same forces per mass, so it stays flat).
-fn settling_sheet() -> Coupled {
-    let b = Boundaries::periodic(&[Axis::X, Axis::Z]);
-    let d = Domain::new([0.0; 3], [0.1, 0.2, 0.1], 0.02, b, None).expect("a valid box");
-    let grid = MacGrid::new(d);
-    let params = DragParams {
-        xi_d: 1e4,
-        xi_perp: 1.0,
-        xi_par: 1.0,
-        diameter: SHEET_DIAMETER,
-        ..Default::default()
-    };
-    let (n, thickness) = (5, 2e-4);
-    let area_cell = (0.1 / (n - 1) as f64).powi(2);
-    let mut x = Vec::new();
-    for j in 0..n {
-        for i in 0..n {
-            x.push(Vector3::new(
-                0.1 * i as f64 / (n - 1) as f64,
-                0.1,
-                0.1 * j as f64 / (n - 1) as f64,
-            ));
-        }
-    }
-    let mut mass = vec![0.0; n * n];
-    let mut elements = Vec::new();
-    let id = |a: usize, b: usize| (b * n + a) as u32;
-    for j in 0..n - 1 {
-        for i in 0..n - 1 {
-            for t in [
-                [id(i, j), id(i, j + 1), id(i + 1, j)],
-                [id(i + 1, j), id(i, j + 1), id(i + 1, j + 1)],
-            ] {
-                for &v in &t {
-                    mass[v as usize] += SHEET_DENSITY * thickness * 0.5 * area_cell / 3.0;
-                }
-                elements.push(DragElement {
-                    shape: DragShape::Triangle(t, thickness),
-                    params,
-                });
-            }
-        }
-    }
-    let mut sys = SolidSystem::new(mass);
-    sys.gravity = Vector3::new(0.0, -G, 0.0);
-    let state = State {
-        v: vec![Vector3::zeros(); x.len()],
-        x,
-    };
-    (sys, state, elements, grid)
 }

@@ -294,6 +294,12 @@ pub fn csv(runs: &[Run]) -> String {
 /// Facts checked against theory, each with whether it held.
 pub type Checks = Vec<(String, bool)>;
 
+/// Prints the observed orders on one line.
+pub fn print_orders(orders: &[(String, f64)]) {
+    let list: Vec<String> = orders.iter().map(|(m, o)| format!("{m} {o:.3}")).collect();
+    println!("\nobserved orders: {}", list.join(", "));
+}
+
 /// Prints the checks (ok / FAIL per line).
 pub fn print_checks(checks: &Checks) {
     println!();

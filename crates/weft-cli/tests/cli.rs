@@ -288,10 +288,10 @@ fn bench_accuracy_quick_asserts_theory_and_writes_runs_and_charts() {
 
 /// `weft bench convergence --quick`: the orders of the cantilever, catenary and
 /// Taylor–Green in their bands, the shell strip within 0.5 %, the Darcy slab exact. Runs:
-/// 3 cantilevers, 3 catenaries, 2 strips, 2 Taylor–Green, 2 slabs.
+/// 3 cantilevers, 3 catenaries, 2 strips, 2 membranes, 2 Taylor–Green, 2 slabs.
 #[test]
 fn bench_convergence_quick_asserts_orders_and_writes_runs_and_chart() {
-    quick_suite("convergence", 12, &["convergence_error_size"]);
+    quick_suite("convergence", 14, &["convergence_error_size"]);
 }
 
 /// `weft bench coupling --quick`: newton never blows up and is first order; staggered fails

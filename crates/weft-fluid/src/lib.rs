@@ -19,6 +19,7 @@ pub mod grid;
 pub mod obstacle;
 pub mod pressure;
 pub mod raster;
+pub mod verify;
 pub mod viscosity;
 
 pub use drag::{DragParams, FluidProperties, Shape, drag_force, lift_force};

@@ -1,7 +1,7 @@
 //! Fluid verification (VERIFY.md, Fluid): hydrostatic rest, Taylor–Green, divergence after
 //! every solve, and the Darcy slab through the porous pressure system.
 
-use weft_fluid::advect::advect_velocity;
+use weft_fluid::verify;
 use weft_fluid::*;
 
 const RHO: f64 = 998.2;
@@ -50,58 +50,24 @@ fn hydrostatic_rest() {
     }
 }
 
-/// The inviscid Taylor–Green vortex u = sin x cos y, v = −cos x sin y is a steady solution
-/// of the Euler equations on the periodic box [0, 2π]²; what the solver loses of it is its
-/// numerical error. At a fixed CFL number the velocity error and the kinetic-energy loss at
-/// t = 1 must fall with resolution at the scheme's order (semi-Lagrangian with trilinear
-/// interpolation at fixed CFL: first order). Every projection must leave a divergence below
-/// its tolerance.
+/// The inviscid Taylor–Green vortex ([`verify::taylor_green`]): what the solver loses of
+/// this steady Euler solution is its numerical error. At a fixed CFL number the velocity
+/// error and the kinetic-energy loss at t = 1 must fall with resolution at the scheme's order
+/// (semi-Lagrangian with trilinear interpolation at fixed CFL: first order). Every
+/// projection must leave a divergence below its tolerance.
 #[test]
 fn taylor_green_converges_and_stays_divergence_free() {
-    let tau = std::f64::consts::TAU;
-    let exact = |p: [f64; 3]| [p[0].sin() * p[1].cos(), -p[0].cos() * p[1].sin(), 0.0];
     let mut errors = Vec::new();
     let mut losses = Vec::new();
     for n in [16usize, 32, 64] {
-        let dx = tau / n as f64;
-        let b = Boundaries::periodic(&[Axis::X, Axis::Y, Axis::Z]);
-        let d = Domain::new([0.0; 3], [tau, tau, dx], dx, b, None).unwrap();
-        let mut g = MacGrid::new(d);
-        g.set_velocity(exact);
-        let mut proj = Projection::new(&g);
-        let settings = PressureSolve {
-            tolerance: 1e-10,
-            max_iterations: 2000,
-        };
-        // Start exactly discretely divergence-free.
-        proj.project(&mut g, 1.0, 1.0, &settings).unwrap();
-        let e0 = g.kinetic_energy();
-        // h = 4/n: the CFL number |u|max h/Δx = 4/(2π) ≈ 0.64 at every resolution.
-        let steps = n / 4;
-        let h = 1.0 / steps as f64;
-        let mut scratch = None;
-        for _ in 0..steps {
-            advect_velocity(&mut g, h, &mut scratch);
-            let s = proj.project(&mut g, 1.0, h, &settings).unwrap();
-            assert!(
-                s.divergence <= 1e-10,
-                "n = {n}: divergence {}",
-                s.divergence
-            );
-        }
-        let mut err = 0.0f64;
-        for a in 0..2 {
-            let dims = g.domain.face_dims(a);
-            for j in 0..dims[1] {
-                for i in 0..dims[0] {
-                    let p = g.domain.face_position(a, [i, j, 0]);
-                    let u = g.vel[a][g.domain.face(a, i, j, 0)];
-                    err = err.max((u - exact(p)[a]).abs());
-                }
-            }
-        }
-        errors.push(err);
-        losses.push(1.0 - g.kinetic_energy() / e0);
+        let tg = verify::taylor_green(n).unwrap();
+        assert!(
+            tg.max_divergence <= 1e-10,
+            "n = {n}: divergence {}",
+            tg.max_divergence
+        );
+        errors.push(tg.max_error);
+        losses.push(tg.energy_loss);
     }
     let order = |e: &[f64]| (e[1] / e[2]).log2();
     eprintln!(
@@ -118,75 +84,20 @@ fn taylor_green_converges_and_stays_divergence_free() {
     assert!(order(&losses) > 0.8, "energy loss order {}", order(&losses));
 }
 
-/// Darcy slab: flow q through a fixed porous slab (fluid fraction α, drag K per unit volume)
-/// across a channel, inflow at x = 0 and open at the far end. At steady state the mixture flux
-/// α u = q everywhere, and inside the slab α∇p = −K u, so the pressure falls by
-/// Δp = K q L / α² over the slab's length L. Convention: with Darcy's law Δp/L = μ q / k (q
-/// the superficial velocity), K = μ α²/k. Exact for the discrete system at steady state:
-/// tolerance 1e-8 relative.
+/// Darcy slab ([`verify::darcy_slab`]): the pressure drop across a fixed porous slab is
+/// K q L/α², and the superficial velocity α u is q inside it. Exact for the discrete system
+/// at steady state: tolerance 1e-8 relative (and 1e-10 m/s).
 #[test]
 fn darcy_slab_pressure_drop() {
-    let (q, alpha, k) = (0.02, 0.7, 3.0e3);
-    let mut b = Boundaries::periodic(&[Axis::Z]);
-    b.lo[0] = Boundary::Inflow([q, 0.0, 0.0]);
-    b.hi[0] = Boundary::Open;
-    let d = Domain::new([0.0; 3], [1.0, 0.25, 0.025], 0.025, b, None).unwrap();
-    let mut g = MacGrid::new(d);
-    g.set_velocity(|_| [q, 0.0, 0.0]);
-    // The slab: x-faces i0..=i1 (x = 0.3 to 0.6), and the y/z faces of the cells between.
-    let dom = g.domain.clone();
-    let (i0, i1) = (12usize, 24usize);
-    for a in 0..3 {
-        let dims = dom.face_dims(a);
-        for kk in 0..dims[2] {
-            for j in 0..dims[1] {
-                for i in 0..dims[0] {
-                    let inside = if a == 0 {
-                        (i0..=i1).contains(&i)
-                    } else {
-                        (i0..i1).contains(&i)
-                    };
-                    if inside {
-                        let f = dom.face(a, i, j, kk);
-                        g.alpha[a][f] = alpha;
-                        g.drag[a][f] = k;
-                    }
-                }
-            }
-        }
-    }
-    let mut proj = Projection::new(&g);
-    // Steady state: repeated steps (no advection: the flow is uniform along x) until the
-    // inertial term ρα(u − u*)/h vanishes; after the first step u* is already the steady u.
-    for _ in 0..3 {
-        let s = proj
-            .project(
-                &mut g,
-                RHO,
-                10.0,
-                &PressureSolve {
-                    tolerance: 1e-10,
-                    max_iterations: 5000,
-                },
-            )
-            .unwrap();
-        assert!(s.divergence <= 1e-10, "{}", s.divergence);
-    }
-    // From the centre of cell i0 − 1 to that of cell i1 the path crosses faces i0..=i1.
-    let len = (i1 - i0 + 1) as f64 * dom.dx;
-    let want = k * q * len / (alpha * alpha);
-    let dp = g.pressure[dom.cell(i0 - 1, 3, 0)] - g.pressure[dom.cell(i1, 3, 0)];
+    let s = verify::darcy_slab(0.025).unwrap();
+    assert!(s.max_divergence <= 1e-10, "{}", s.max_divergence);
     assert!(
-        (dp - want).abs() < 1e-8 * want,
-        "Δp {dp} Pa vs K q L/α² = {want} Pa"
+        (s.drop - s.reference).abs() < 1e-8 * s.reference,
+        "Δp {} Pa vs K q L/α² = {} Pa",
+        s.drop,
+        s.reference
     );
-    // Superficial velocity q everywhere: u = q/α inside, q outside.
-    let f_in = dom.face(0, 18, 2, 0);
-    assert!(
-        (g.vel[0][f_in] * alpha - q).abs() < 1e-10,
-        "{}",
-        g.vel[0][f_in]
-    );
+    assert!((s.superficial - 0.02).abs() < 1e-10, "{}", s.superficial);
 }
 
 /// Bad input: a pressure solve that cannot converge reports its residual and leaves the grid

@@ -17,6 +17,7 @@ mod coupled;
 mod error;
 mod fluid;
 mod stepper;
+pub mod verify;
 
 pub use behavior::{
     AttachmentBehavior, Behavior, BehaviorTree, Damping, DiscreteShellMaterial, FluidDrag, Gravity,

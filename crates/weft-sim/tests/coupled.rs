@@ -3,11 +3,12 @@
 use nalgebra::Vector3;
 use weft_fluid::advect::advect_velocity;
 use weft_fluid::{Axis, Boundaries, Domain, DragParams, FluidProperties, MacGrid};
+use weft_sim::verify;
 use weft_sim::*;
-use weft_solid::energy::RodStretch;
 use weft_solid::{Settings, SolidSystem, State};
 
-/// A straight free strand of `n` segments along x from `start`, moving at `v`.
+/// A straight free strand of `n` segments along x from `start`, moving at `v` (hair's
+/// 1300 kg/m³, ξ_D = 10⁴).
 fn strand(
     n: usize,
     len: f64,
@@ -15,50 +16,11 @@ fn strand(
     v: [f64; 3],
     radius: f64,
 ) -> (SolidSystem, State, Vec<DragElement>) {
-    strand_of(n, len, start, v, radius, 1300.0)
-}
-
-/// The same with a given density [kg/m³].
-fn strand_of(
-    n: usize,
-    len: f64,
-    start: [f64; 3],
-    v: [f64; 3],
-    radius: f64,
-    density: f64,
-) -> (SolidSystem, State, Vec<DragElement>) {
-    let area = std::f64::consts::PI * radius * radius;
-    let l = len / n as f64;
-    let m = density * area * l;
-    let mut mass = vec![m; n + 1];
-    mass[0] *= 0.5;
-    mass[n] *= 0.5;
-    let mut sys = SolidSystem::new(mass);
     let params = DragParams {
         xi_d: 1e4,
-        diameter: 2.0 * radius,
         ..Default::default()
     };
-    let mut elements = Vec::new();
-    for i in 0..n {
-        sys.elements.stretches.push(RodStretch {
-            v: [i as u32, i as u32 + 1],
-            rest_length: l,
-            k: 10.0,
-        });
-        elements.push(DragElement {
-            shape: DragShape::Segment([i as u32, i as u32 + 1], area),
-            params,
-        });
-    }
-    let x = (0..=n)
-        .map(|i| Vector3::new(start[0] + i as f64 * l, start[1], start[2]))
-        .collect();
-    let state = State {
-        x,
-        v: vec![Vector3::from(v); n + 1],
-    };
-    (sys, state, elements)
+    verify::strand(n, len, start, v, radius, 1300.0, params)
 }
 
 /// Drag and pressure forces are internal to fluid + solids: in a periodic box without gravity
@@ -137,70 +99,10 @@ fn the_coupling_conserves_momentum_in_a_periodic_box() {
     assert!(exchanged > 0.0);
 }
 
-/// A flat 5 × 5 vertex sheet of `thickness` over the whole 0.1 m × 0.1 m x–z extent at height
-/// `y`, of solid density `rho_s`: its vertex masses, positions and drag triangles.
-fn porous_sheet(
-    y: f64,
-    thickness: f64,
-    rho_s: f64,
-    params: DragParams,
-) -> (Vec<f64>, Vec<Vector3<f64>>, Vec<DragElement>) {
-    let n = 5;
-    let area_cell = (0.1 / (n - 1) as f64).powi(2);
-    let mut x = Vec::new();
-    for j in 0..n {
-        for i in 0..n {
-            x.push(Vector3::new(
-                0.1 * i as f64 / (n - 1) as f64,
-                y,
-                0.1 * j as f64 / (n - 1) as f64,
-            ));
-        }
-    }
-    let mut mass = vec![0.0; n * n];
-    let mut elements = Vec::new();
-    for j in 0..n - 1 {
-        for i in 0..n - 1 {
-            let id = |a: usize, b: usize| (b * n + a) as u32;
-            for t in [
-                [id(i, j), id(i, j + 1), id(i + 1, j)],
-                [id(i + 1, j), id(i, j + 1), id(i + 1, j + 1)],
-            ] {
-                for &v in &t {
-                    mass[v as usize] += rho_s * thickness * 0.5 * area_cell / 3.0;
-                }
-                elements.push(DragElement {
-                    shape: DragShape::Triangle(t, thickness),
-                    params,
-                });
-            }
-        }
-    }
-    (mass, x, elements)
-}
-
-/// A heavy porous sheet spanning a box (periodic across, walls above and below) of water at
-/// rest, falling at its `thickness`.
+/// The settling sheet of `thickness` ([`verify::settling_sheet`]) stepped 60 × 5 ms with
+/// Newton coupling to 1e-9 m/s; its mean fall speed at the end and Darcy's Δρg/k.
 fn settle_sheet(thickness: f64) -> (f64, f64) {
-    let b = Boundaries::periodic(&[Axis::X, Axis::Z]);
-    let d = Domain::new([0.0; 3], [0.1, 0.2, 0.1], 0.02, b, None).unwrap();
-    let mut grid = MacGrid::new(d);
-    // No elastic terms: every vertex feels the same forces per mass, so the sheet stays flat.
-    let rho_s = 1500.0;
-    let params = DragParams {
-        xi_d: 1e4,
-        xi_perp: 1.0,
-        xi_par: 1.0,
-        diameter: 1e-4,
-        ..Default::default()
-    };
-    let (mass, x, elements) = porous_sheet(0.1, thickness, rho_s, params);
-    let mut sys = SolidSystem::new(mass);
-    sys.gravity = Vector3::new(0.0, -9.81, 0.0);
-    let mut state = State {
-        v: vec![Vector3::zeros(); x.len()],
-        x,
-    };
+    let (mut sys, mut state, elements, mut grid) = verify::settling_sheet(thickness);
     let mut stepper = CoupledStepper::new(&sys, &grid).unwrap();
     let settings = CoupledSettings {
         tolerance: 1e-9,
@@ -217,11 +119,7 @@ fn settle_sheet(thickness: f64) -> (f64, f64) {
             .unwrap();
         v = -state.v.iter().map(|v| v.y).sum::<f64>() / state.v.len() as f64;
     }
-    // k = (μ/D²)·C⊥, C⊥ = ξ_D ξ⊥ / 10⁴ (linear branch).
-    let c_perp = params.xi_d * params.xi_perp / 1e4;
-    let k = 1.002e-3 / (params.diameter * params.diameter) * c_perp;
-    let terminal = (rho_s - 998.2) * 9.81 / k;
-    (v, terminal)
+    (v, verify::sheet_terminal())
 }
 
 /// Settling porous sheet (VERIFY.md): the sheet reaches the terminal velocity at which drag
@@ -252,7 +150,7 @@ fn ergun_sheet(q: f64, thickness: f64, params: DragParams) -> (f64, usize) {
     let d = Domain::new([0.0; 3], [0.1, 0.2, 0.1], 0.02, b, None).unwrap();
     let mut grid = MacGrid::new(d);
     grid.set_velocity(|_| [0.0, q, 0.0]);
-    let (mass, x, elements) = porous_sheet(0.1, thickness, 1000.0, params);
+    let (mass, x, elements) = verify::porous_sheet(0.1, thickness, 1000.0, params);
     let mut sys = SolidSystem::new(mass);
     sys.pinned = vec![true; x.len()];
     let mut state = State {
@@ -451,18 +349,11 @@ fn a_fluid_domain_element_makes_the_scenes_fluid() {
     );
 }
 
-/// A light strand (ρ_s = `density`) in a closed water box under gravity, stepped `steps`
-/// times with `method`; returns its mean vertical velocity after each step (None once a
-/// step fails).
+/// A light strand (radius 8 mm, ρ_s = `density`) in a closed water box under gravity
+/// ([`verify::light_strand`]), stepped `steps` times with `method`; returns its mean vertical
+/// velocity after each step (None once a step fails).
 fn light_strand(method: Coupling, density: f64, xi_d: f64, steps: usize) -> Vec<Option<f64>> {
-    let d = Domain::new([0.0; 3], [0.2, 0.2, 0.2], 0.02, Boundaries::closed(), None).unwrap();
-    let mut grid = MacGrid::new(d);
-    let (mut sys, mut state, mut elements) =
-        strand_of(8, 0.12, [0.04, 0.1, 0.1], [0.0; 3], 8e-3, density);
-    for e in &mut elements {
-        e.params.xi_d = xi_d;
-    }
-    sys.gravity = Vector3::new(0.0, -9.81, 0.0);
+    let (mut sys, mut state, elements, mut grid) = verify::light_strand(8e-3, density, xi_d);
     let mut stepper = CoupledStepper::new(&sys, &grid).unwrap();
     let settings = CoupledSettings {
         method,

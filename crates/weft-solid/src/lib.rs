@@ -15,6 +15,7 @@ pub mod energy;
 pub mod integrator;
 pub mod spd;
 pub mod system;
+pub mod verify;
 
 pub use integrator::{Integrator, Method, Settings, StepError, StepStats};
 pub use system::{Elements, SolidSystem, State, SystemError, VertexDrag};

@@ -3,69 +3,9 @@
 
 use nalgebra::Vector3;
 use std::f64::consts::PI;
-use weft_solid::energy::{Membrane, MembraneMaterial, RodBend, RodStretch};
+use weft_solid::energy::{MembraneMaterial, RodStretch};
+use weft_solid::verify::{self, G, at_rest, rod};
 use weft_solid::{Integrator, Method, Settings, SolidSystem, State, StepError};
-
-const G: f64 = 9.81;
-
-fn at_rest(x: Vec<Vector3<f64>>) -> State {
-    let n = x.len();
-    State {
-        x,
-        v: vec![Vector3::zeros(); n],
-    }
-}
-
-/// Static equilibrium to 1e-11 m (positions are O(1) m; f64 resolves ~1e-16 of that, and the
-/// stiffest problems here have condition numbers near 1e5).
-fn solve_static(sys: &SolidSystem, state: &mut State) {
-    let mut integ = Integrator::new(sys).unwrap();
-    let settings = Settings {
-        method: Method::Newton,
-        tolerance: 1e-11,
-        max_iterations: 200,
-    };
-    integ
-        .solve_static(sys, state, &settings)
-        .unwrap_or_else(|e| panic!("{e}"));
-}
-
-/// A straight rod along +x from `start`, `n` segments of length `len / n`.
-fn rod(
-    n: usize,
-    len: f64,
-    start: Vector3<f64>,
-    density: f64,
-    ea: f64,
-    ei: f64,
-) -> (SolidSystem, State) {
-    let l = len / n as f64;
-    let x: Vec<_> = (0..=n)
-        .map(|i| start + Vector3::new(i as f64 * l, 0.0, 0.0))
-        .collect();
-    let mut mass = vec![density * l; n + 1];
-    mass[0] *= 0.5;
-    mass[n] *= 0.5;
-    let mut sys = SolidSystem::new(mass);
-    sys.gravity = Vector3::new(0.0, -G, 0.0);
-    for i in 0..n {
-        sys.elements.stretches.push(RodStretch {
-            v: [i as u32, i as u32 + 1],
-            rest_length: l,
-            k: ea,
-        });
-    }
-    if ei > 0.0 {
-        for i in 1..n {
-            sys.elements.bends.push(RodBend {
-                v: [i as u32 - 1, i as u32, i as u32 + 1],
-                k: ei / (2.0 * l),
-                rest: 0.0,
-            });
-        }
-    }
-    (sys, at_rest(x))
-}
 
 #[test]
 fn pendulum_period_matches_the_large_amplitude_series() {
@@ -180,39 +120,13 @@ fn newton_is_stable_where_explicit_blows_up() {
     assert!(energy(&small).abs() < 10.0);
 }
 
-/// Tip deflection of a rod cantilever under self-weight, clamped by pinning its first two
-/// vertices (position and tangent).
-fn cantilever_tip(n: usize) -> (f64, f64) {
-    let (len, r, e, rho) = (0.5, 1e-3, 2e11, 1000.0);
-    let area = PI * r * r;
-    let i = PI * r.powi(4) / 4.0;
-    let l = len / n as f64;
-    // One extra segment behind x = 0 carries the clamp.
-    let (mut sys, mut s) = rod(
-        n + 1,
-        len + l,
-        Vector3::new(-l, 0.0, 0.0),
-        rho * area,
-        e * area,
-        e * i,
-    );
-    sys.pinned[0] = true;
-    sys.pinned[1] = true;
-    solve_static(&sys, &mut s);
-    let q = rho * area * G;
-    // Pinning two vertices clamps the tangent at the midpoint of the pinned segment: the first
-    // bending vertex's Voronoi region starts there. So the beam is L + l/2 long.
-    let reference = q * (len + 0.5 * l).powi(4) / (8.0 * e * i);
-    (-s.x[n + 1].y, reference)
-}
-
 #[test]
 fn cantilever_rod_matches_beam_theory_and_converges_with_refinement() {
     // Linear regime: δ/L ≈ 3e-3 (δ ≈ 1.5 mm on 0.5 m); the geometric nonlinearity is
     // O((δ/L)²) ≈ 1e-5.
     let mut errs = Vec::new();
     for n in [10, 20, 40] {
-        let (tip, reference) = cantilever_tip(n);
+        let (tip, reference) = verify::cantilever_tip(n).unwrap();
         errs.push((tip - reference).abs() / reference);
     }
     eprintln!("cantilever relative errors at 10, 20, 40 segments: {errs:?}");
@@ -230,51 +144,9 @@ fn cantilever_rod_matches_beam_theory_and_converges_with_refinement() {
 
 #[test]
 fn catenary_sag_matches_the_analytic_curve() {
-    // Ends at x = ±a, length L = 1.2 · 2a, near-inextensible (strain ~1e-7), no bending.
-    let (a, len, n) = (0.5, 1.2, 60);
-    let l = len / n as f64;
-    // Start as a symmetric V of the right length; the solver finds the catenary.
-    let depth = ((len / 2.0).powi(2) - a * a).sqrt();
-    let x: Vec<_> = (0..=n)
-        .map(|i| {
-            let s = i as f64 * l;
-            let u = if s <= len / 2.0 {
-                s / (len / 2.0)
-            } else {
-                (len - s) / (len / 2.0)
-            };
-            Vector3::new(-a + 2.0 * a * i as f64 / n as f64, -depth * u, 0.0)
-        })
-        .collect();
-    let mut mass = vec![0.01 * l; n + 1];
-    mass[0] *= 0.5;
-    mass[n] *= 0.5;
-    let mut sys = SolidSystem::new(mass);
-    sys.gravity = Vector3::new(0.0, -G, 0.0);
-    sys.pinned[0] = true;
-    sys.pinned[n] = true;
-    for i in 0..n {
-        sys.elements.stretches.push(RodStretch {
-            v: [i as u32, i as u32 + 1],
-            rest_length: l,
-            k: 1e3,
-        });
-    }
-    let mut s = at_rest(x);
-    solve_static(&sys, &mut s);
-    // 2c sinh(a/c) = L by bisection; sag = c (cosh(a/c) − 1).
-    let (mut lo, mut hi) = (1e-3, 1e3);
-    for _ in 0..200 {
-        let c = 0.5 * (lo + hi);
-        if 2.0 * c * (a / c).sinh() > len {
-            lo = c
-        } else {
-            hi = c
-        }
-    }
-    let c = 0.5 * (lo + hi);
-    let sag = c * ((a / c).cosh() - 1.0);
-    let mid = -s.x[n / 2].y;
+    // Ends at x = ±0.5 m, length 1.2 m, near-inextensible (EA = 1e3 N: strain ~1e-4), no
+    // bending, 60 segments.
+    let (mid, sag) = verify::catenary_sag(60, 1e3).unwrap();
     eprintln!(
         "catenary sag {mid} vs {sag} (rel {:e})",
         (mid - sag).abs() / sag
@@ -287,64 +159,9 @@ fn catenary_sag_matches_the_analytic_curve() {
     );
 }
 
-/// A sheet of `nx × ny` vertices spanning `w × hgt` in the xy-plane.
-fn sheet(
-    nx: usize,
-    ny: usize,
-    w: f64,
-    hgt: f64,
-    mat: MembraneMaterial,
-    warp: Vector3<f64>,
-) -> (SolidSystem, State) {
-    let mut x = Vec::new();
-    for j in 0..ny {
-        for i in 0..nx {
-            x.push(Vector3::new(
-                w * i as f64 / (nx - 1) as f64,
-                hgt * j as f64 / (ny - 1) as f64,
-                0.0,
-            ));
-        }
-    }
-    let id = |i: usize, j: usize| (j * nx + i) as u32;
-    let mut sys = SolidSystem::new(vec![1e-3; nx * ny]);
-    for j in 0..ny - 1 {
-        for i in 0..nx - 1 {
-            for t in [
-                [id(i, j), id(i + 1, j), id(i + 1, j + 1)],
-                [id(i, j), id(i + 1, j + 1), id(i, j + 1)],
-            ] {
-                let rest = [x[t[0] as usize], x[t[1] as usize], x[t[2] as usize]];
-                sys.elements
-                    .membranes
-                    .push(Membrane::new(t, rest, warp, mat).unwrap());
-            }
-        }
-    }
-    (sys, at_rest(x))
-}
-
-/// Pulls a sheet with line tension `tension` [N/m] on its left and right edges and returns the
-/// measured strains (ε_x, ε_y) at its centre lines.
+/// [`verify::uniaxial`] on an 11 × 11 vertex sheet, or a panic saying why not.
 fn uniaxial(mat: MembraneMaterial, warp: Vector3<f64>, tension: f64) -> (f64, f64) {
-    let (nx, ny, w, hgt) = (11, 11, 1.0, 1.0);
-    let (mut sys, mut s) = sheet(nx, ny, w, hgt, mat, warp);
-    // Pin the centre vertex: it removes rigid translation, and mesh and loads are point
-    // symmetric about it, so it does not move in the exact solution either.
-    sys.pinned[ny / 2 * nx + nx / 2] = true;
-    sys.forces = vec![Vector3::zeros(); nx * ny];
-    let dy = hgt / (ny - 1) as f64;
-    for j in 0..ny {
-        // The edge nodes share the line load by their tributary length (half at the corners).
-        let share = if j == 0 || j == ny - 1 { 0.5 } else { 1.0 } * tension * dy;
-        sys.forces[j * nx] = Vector3::new(-share, 0.0, 0.0);
-        sys.forces[j * nx + nx - 1] = Vector3::new(share, 0.0, 0.0);
-    }
-    solve_static(&sys, &mut s);
-    let (mx, my) = (ny / 2 * nx, nx / 2);
-    let ex = (s.x[mx + nx - 1].x - s.x[mx].x) / w - 1.0;
-    let ey = (s.x[my + (ny - 1) * nx].y - s.x[my].y) / hgt - 1.0;
-    (ex, ey)
+    verify::uniaxial(11, mat, warp, tension).unwrap_or_else(|e| panic!("{e}"))
 }
 
 #[test]
