@@ -181,7 +181,7 @@ pub enum CoupledError {
     Viscosity(weft_fluid::ProjectionError),
     /// A coupling iterate became non-finite (the iterations diverged).
     #[error(
-        "the coupling iterate became non-finite at coupling iteration {iteration} (the iterations diverged: reduce the step, or use newton coupling with quasi-Newton relaxation)"
+        "the coupling iterate became non-finite at coupling iteration {iteration} (the iterations diverged: reduce the step, or use newton coupling)"
     )]
     NonFinite {
         /// Coupling iteration.
