@@ -179,7 +179,6 @@ fn graph_suite(reg: &Arc<Registry>, quick: bool) -> Vec<Row> {
     rows
 }
 
-/// Runs `weft bench`.
 /// The exit code of a sweep suite: 1 when it failed, or (with `--quick`) when a fact theory
 /// fixes did not hold.
 fn checked(quick: bool, result: Result<crate::sweep::Checks, String>) -> ExitCode {
@@ -196,6 +195,7 @@ fn checked(quick: bool, result: Result<crate::sweep::Checks, String>) -> ExitCod
     }
 }
 
+/// Runs `weft bench`.
 pub fn run(reg: &Arc<Registry>, a: BenchArgs) -> ExitCode {
     let rows = match a.suite.as_str() {
         "graph" => graph_suite(reg, a.quick),

@@ -318,6 +318,8 @@ fn stability_map_on<DB: DrawingBackend>(
                         Status::Stable => RGBColor(44, 160, 44),
                         Status::Inaccurate => RGBColor(255, 160, 40),
                         Status::BlownUp => RGBColor(214, 39, 40),
+                        Status::Failed => RGBColor(120, 20, 20),
+                        Status::Unjudged => RGBColor(190, 190, 190),
                     };
                     Some(Rectangle::new(
                         [

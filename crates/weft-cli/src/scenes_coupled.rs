@@ -164,7 +164,7 @@ pub fn coupled_run(
         steps,
         // Without a reference only a blow-up can be judged.
         status: if reference.is_none() && history.is_some() {
-            Status::Stable
+            Status::Unjudged
         } else {
             Status::of(history.is_none(), error, COUPLED_INACCURATE)
         },

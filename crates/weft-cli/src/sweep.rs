@@ -23,20 +23,27 @@ pub const INACCURATE: f64 = 1e-2;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Status {
-    /// Finite, and within [`INACCURATE`] of the reference.
+    /// Finite, and within the scene's threshold of the reference.
     Stable,
-    /// Finite, but further than [`INACCURATE`] from the reference.
+    /// Finite, but further than the threshold from the reference.
     Inaccurate,
-    /// Non-finite, or ran away.
+    /// A time-stepped run that became non-finite, ran away, or whose step failed.
     BlownUp,
+    /// A solve that gave up without blowing up (a static solve that did not converge), or
+    /// whose error could not be measured.
+    Failed,
+    /// Finished, but there was no reference to judge it by.
+    Unjudged,
 }
 
 impl Status {
-    /// The status of a run that `blown` up or ended `error` from its reference, called
-    /// inaccurate above `threshold`.
+    /// The status of a run that `blown` up, or ended `error` from its reference (NaN: not
+    /// measured), inaccurate above `threshold`.
     pub fn of(blown: bool, error: f64, threshold: f64) -> Status {
-        if blown || !error.is_finite() {
+        if blown {
             Status::BlownUp
+        } else if error.is_nan() {
+            Status::Failed
         } else if error > threshold {
             Status::Inaccurate
         } else {
@@ -50,6 +57,19 @@ impl Status {
             Status::Stable => "stable",
             Status::Inaccurate => "inaccurate",
             Status::BlownUp => "blown_up",
+            Status::Failed => "failed",
+            Status::Unjudged => "unjudged",
+        }
+    }
+
+    /// The letter used in text maps.
+    pub fn letter(self) -> char {
+        match self {
+            Status::Stable => 'S',
+            Status::Inaccurate => 'I',
+            Status::BlownUp => 'X',
+            Status::Failed => 'F',
+            Status::Unjudged => '?',
         }
     }
 }
@@ -136,20 +156,34 @@ pub fn pendulum_reference(k: f64) -> [f64; 3] {
 }
 
 /// Runs the pendulum with `method` at step `h` (rounded so that whole steps reach 1 s) and
-/// stiffness `k`, against `reference` (the bob at 1 s).
+/// stiffness `k`, against `reference` (the bob at 1 s), Newton converged to 10⁻¹⁰ m/s.
 pub fn pendulum_run(method: (Method, &'static str), h: f64, k: f64, reference: [f64; 3]) -> Run {
-    pendulum_run_to(method, h, k, reference, 1e-10)
+    pendulum(method, h, k, reference, 1e-10, false)
 }
 
+/// The parameter name of a Newton-tolerance sweep (its runs compare across tolerances).
+pub const TOLERANCE: &str = "Newton tolerance [m/s]";
+
 /// [`pendulum_run`] with Newton stopping at `tolerance` [m/s] (the largest velocity change
-/// of an iteration); the run's scene is `pendulum_tolerance` and its parameter the
-/// tolerance unless that is the default 10⁻¹⁰.
+/// of an iteration): a run of the scene `pendulum_tolerance`, whose parameter is the
+/// tolerance.
 pub fn pendulum_run_to(
     method: (Method, &'static str),
     h: f64,
     k: f64,
     reference: [f64; 3],
     tolerance: f64,
+) -> Run {
+    pendulum(method, h, k, reference, tolerance, true)
+}
+
+fn pendulum(
+    method: (Method, &'static str),
+    h: f64,
+    k: f64,
+    reference: [f64; 3],
+    tolerance: f64,
+    swept: bool,
 ) -> Run {
     let steps = (DURATION / h).round().max(1.0) as usize;
     let h = DURATION / steps as f64;
@@ -195,7 +229,6 @@ pub fn pendulum_run_to(
     } else {
         (state.x[1] - nalgebra::Vector3::from(reference)).norm()
     };
-    let swept = tolerance != 1e-10;
     Run {
         scene: if swept {
             "pendulum_tolerance"
@@ -207,7 +240,7 @@ pub fn pendulum_run_to(
         dx: f64::NAN,
         param: if swept { tolerance } else { k },
         param_name: if swept {
-            "Newton tolerance [m/s]"
+            TOLERANCE
         } else {
             "rod stiffness k [N]"
         },
@@ -238,8 +271,7 @@ pub fn fitted_order(points: &[(f64, f64)]) -> f64 {
 /// where that parameter changes the problem (stiffness, drag); a tolerance sweep compares
 /// across tolerances, which is its point.
 pub fn comparable(a: &Run, b: &Run) -> bool {
-    a.scene == b.scene
-        && (a.param.to_bits() == b.param.to_bits() || a.param_name.contains("tolerance"))
+    a.scene == b.scene && (a.param.to_bits() == b.param.to_bits() || a.param_name == TOLERANCE)
 }
 
 /// For each run, whether it is on the Pareto front of (wall time, error) among the finite
@@ -318,12 +350,10 @@ pub fn write_runs(
 ) -> Result<(), String> {
     std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
     let json = serde_json::json!({"runs": runs, "summary": summary});
+    let json = serde_json::to_string_pretty(&json).map_err(|e| format!("JSON: {e}"))?;
     for (file, text) in [
         (format!("{name}.csv"), csv(runs)),
-        (
-            format!("{name}.json"),
-            serde_json::to_string_pretty(&json).unwrap_or_default(),
-        ),
+        (format!("{name}.json"), json),
     ] {
         let p = out.join(file);
         weft_graph::atomic_write(&p, text.as_bytes())
@@ -348,7 +378,8 @@ pub fn order_of(runs: &[Run], x: fn(&Run) -> f64, keep: impl Fn(&Run) -> bool) -
 }
 
 /// Prints a stability map as text: a row per parameter value (ascending), a column per step
-/// (descending), S stable, I inaccurate, X blown up.
+/// (descending), by [`Status::letter`]: S stable, I inaccurate, X blown up, F failed,
+/// ? unjudged.
 pub fn print_map(runs: &[Run], methods: &[&str], params: &[f64], hs: &[f64]) {
     for m in methods {
         println!("{m}:");
@@ -356,16 +387,9 @@ pub fn print_map(runs: &[Run], methods: &[&str], params: &[f64], hs: &[f64]) {
             let row: String = hs
                 .iter()
                 .map(|&h| {
-                    match runs
-                        .iter()
+                    runs.iter()
                         .find(|r| r.method == *m && r.param == p && (r.h - h).abs() < 1e-12)
-                        .map(|r| r.status)
-                    {
-                        Some(Status::Stable) => 'S',
-                        Some(Status::Inaccurate) => 'I',
-                        Some(Status::BlownUp) => 'X',
-                        None => '?',
-                    }
+                        .map_or(' ', |r| r.status.letter())
                 })
                 .collect();
             println!("  {p:9.2e}  {row}");
@@ -419,5 +443,17 @@ mod tests {
             run(0.5, f64::NAN),
         ];
         assert_eq!(pareto_front(&runs), [true, false, true, false]);
+        // Runs of another stiffness are not compared (each k is its own problem); runs of a
+        // tolerance sweep are compared across tolerances.
+        let mut other = run(5.0, 0.001);
+        other.param = 2.0;
+        let mixed = [run(1.0, 0.1), other.clone()];
+        assert_eq!(pareto_front(&mixed), [true, true]);
+        let mut tols = [run(1.0, 0.1), other];
+        for r in tols.iter_mut() {
+            r.param_name = TOLERANCE;
+        }
+        tols[1].seconds = 0.5;
+        assert_eq!(pareto_front(&tols), [false, true]);
     }
 }

@@ -30,7 +30,9 @@ pub struct TaylorGreen {
 /// The inviscid Taylor–Green vortex u = sin x cos y, v = −cos x sin y (a steady solution of
 /// the Euler equations on the periodic box [0, 2π]²) at `n` cells across, run to t = 1 at
 /// CFL 0.64 (h = 4/n) with pressure solves to 10⁻¹⁰: what it loses is numerical error.
+/// Panics unless `n` ≥ 4.
 pub fn taylor_green(n: usize) -> Result<TaylorGreen, VerifyError> {
+    assert!(n >= 4, "Taylor–Green needs 4 cells across");
     let tau = std::f64::consts::TAU;
     let exact = |p: [f64; 3]| [p[0].sin() * p[1].cos(), -p[0].cos() * p[1].sin(), 0.0];
     let dx = tau / n as f64;
@@ -91,8 +93,12 @@ pub struct DarcySlab {
 /// open at the far end, at cell size `dx` (dividing 0.3 and 0.25). At steady state the
 /// mixture flux α u = q everywhere and inside the slab α∇p = −K u, so the pressure falls by
 /// K q L/α² over the slab's length L (with Darcy's Δp/L = μq/k: K = μα²/k). Exact for the
-/// discrete system at steady state.
+/// discrete system at steady state. Panics unless 0 < `dx` ≤ 0.1 m (a cell before the slab).
 pub fn darcy_slab(dx: f64) -> Result<DarcySlab, VerifyError> {
+    assert!(
+        dx > 0.0 && dx <= 0.1,
+        "the slab needs cells of at most 0.1 m"
+    );
     let (q, alpha, k) = (0.02, 0.7, 3.0e3);
     let mut b = Boundaries::periodic(&[Axis::Z]);
     b.lo[0] = Boundary::Inflow([q, 0.0, 0.0]);

@@ -19,8 +19,9 @@ pub type CoupledScene = (SolidSystem, State, Vec<DragElement>, MacGrid);
 /// and sagging under its own weight, and the Euler–Bernoulli reference qL⁴/(8EI) with
 /// EI = Ebt³/12 (ν = 0, so the narrow and wide plate formulas agree). The clamp sits half a
 /// column behind the second pinned column, so the beam is L + Δx/2 long. Linear regime:
-/// δ/L ≈ 2·10⁻³.
+/// δ/L ≈ 2·10⁻³. Panics unless `nx` and `ny` are at least 2.
 pub fn shell_strip_tip(nx: usize, ny: usize) -> Result<(f64, f64), String> {
+    assert!(nx >= 2 && ny >= 2, "a strip needs two vertices each way");
     let (len, width, t, e, rho_a) = (0.4, 0.1, 1e-3, 2e9, 0.005);
     let dx = len / (nx - 1) as f64;
     // The grid spans x ∈ [−dx, L]: its first column sits behind the clamp line x = 0.

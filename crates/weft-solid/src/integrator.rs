@@ -563,7 +563,26 @@ impl Integrator {
         h: f64,
         settings: &Settings,
     ) -> Result<StepStats, StepError> {
+        self.step_from(sys, state, None, pinned_to, h, settings)
+    }
+
+    /// [`Self::step`] with Newton starting from `guess` (end-of-step positions, e.g. the
+    /// last coupling iteration's) instead of x⁰ + h v⁰. The answer is the same minimizer to
+    /// the tolerance; a good guess needs fewer iterations. Pinned vertices still go to their
+    /// targets; a guess of the wrong length, or not finite, is ignored.
+    pub fn step_from(
+        &mut self,
+        sys: &SolidSystem,
+        state: &mut State,
+        guess: Option<&[Vector3<f64>]>,
+        pinned_to: Option<&[Vector3<f64>]>,
+        h: f64,
+        settings: &Settings,
+    ) -> Result<StepStats, StepError> {
         sys.check(state)?;
+        let guess = guess.filter(|g| {
+            g.len() == state.x.len() && g.iter().all(|p| p.iter().all(|c| c.is_finite()))
+        });
         let x0 = state.x.clone();
         let target = |i: usize| pinned_to.map_or(x0[i], |p| p[i]);
         if settings.method == Method::Explicit {
@@ -578,7 +597,7 @@ impl Integrator {
                 // x̂ = x⁰ + h v⁰ + h² (g + f/m): constant forces act like gravity.
                 self.x_hat[i] =
                     x0[i] + h * state.v[i] + h * h * (sys.gravity + sys.force(i) / sys.mass[i]);
-                x[i] = x0[i] + h * state.v[i];
+                x[i] = guess.map_or(x0[i] + h * state.v[i], |g| g[i]);
             }
         }
         let stats = self.minimize(sys, &mut x, &x0, Mode::Dynamic { h }, settings)?;

@@ -33,7 +33,7 @@ pub fn solve_static(sys: &SolidSystem, state: &mut State) -> Result<(), StepErro
 
 /// A straight rod along +x from `start` under gravity −y: `n` segments of `len / n`, line
 /// density `density` [kg/m] lumped to vertices, stretch stiffness `ea` [N] and bending
-/// stiffness `ei` [N m²] (no bending when 0).
+/// stiffness `ei` [N m²] (no bending when 0). Panics unless `n` ≥ 1.
 pub fn rod(
     n: usize,
     len: f64,
@@ -42,6 +42,7 @@ pub fn rod(
     ea: f64,
     ei: f64,
 ) -> (SolidSystem, State) {
+    assert!(n >= 1, "a rod needs a segment");
     let l = len / n as f64;
     let x: Vec<_> = (0..=n)
         .map(|i| start + Vector3::new(i as f64 * l, 0.0, 0.0))
@@ -74,8 +75,9 @@ pub fn rod(
 /// segments, clamped by pinning its first two vertices (position and tangent), and the
 /// Euler–Bernoulli reference qL⁴/(8EI). Pinning two vertices clamps the tangent at the
 /// midpoint of the pinned segment (the first bending vertex's Voronoi region starts there),
-/// so the beam is L + l/2 long. Linear regime: δ/L ≈ 3·10⁻³.
+/// so the beam is L + l/2 long. Linear regime: δ/L ≈ 3·10⁻³. Panics unless `n` ≥ 1.
 pub fn cantilever_tip(n: usize) -> Result<(f64, f64), StepError> {
+    assert!(n >= 1, "a cantilever needs a segment");
     let (len, r, e, rho) = (0.5, 1e-3, 2e11, 1000.0);
     let area = PI * r * r;
     let i = PI * r.powi(4) / 4.0;
@@ -112,8 +114,13 @@ pub fn catenary_parameter(a: f64, len: f64) -> f64 {
 
 /// Mid-point sag of a chain (length 1.2 m, 0.01 kg/m, `n` segments, `n` even, stretch
 /// stiffness `ea`, no bending) hung between x = ±0.5 m, and the catenary's c(cosh(a/c) − 1).
-/// It starts as a symmetric V of the right length; the static solve finds the curve.
+/// It starts as a symmetric V of the right length; the static solve finds the curve. Panics
+/// unless `n` is even and at least 2.
 pub fn catenary_sag(n: usize, ea: f64) -> Result<(f64, f64), StepError> {
+    assert!(
+        n >= 2 && n.is_multiple_of(2),
+        "the catenary needs an even number of segments"
+    );
     let (a, len) = (0.5, 1.2);
     let l = len / n as f64;
     let depth = ((len / 2.0).powi(2) - a * a).sqrt();
@@ -145,7 +152,7 @@ pub fn catenary_sag(n: usize, ea: f64) -> Result<(f64, f64), StepError> {
 
 /// A flat sheet of `nx × ny` vertices spanning `w × hgt` in the xy-plane, two membrane
 /// triangles per quad of material `mat` with warp direction `warp`, 1 g per vertex, no
-/// gravity.
+/// gravity. Panics unless `nx` and `ny` are at least 2.
 pub fn membrane_sheet(
     nx: usize,
     ny: usize,
@@ -154,6 +161,7 @@ pub fn membrane_sheet(
     mat: MembraneMaterial,
     warp: Vector3<f64>,
 ) -> Result<(SolidSystem, State), String> {
+    assert!(nx >= 2 && ny >= 2, "a sheet needs two vertices each way");
     let mut x = Vec::new();
     for j in 0..ny {
         for i in 0..nx {
@@ -185,13 +193,15 @@ pub fn membrane_sheet(
 /// Uniaxial membrane tension: a 1 m square sheet of `n × n` vertices (`n` odd) pulled with
 /// line tension `tension` [N/m] on its left and right edges; returns the strains (ε_x, ε_y)
 /// measured along its centre lines, for the linear law ε_x = N/(E t), ε_y = −ν ε_x (the
-/// membrane is Green-strain StVK, so it departs from the linear law by O(ε)).
+/// membrane is Green-strain StVK, so it departs from the linear law by O(ε)). Panics
+/// unless `n` is odd and at least 3 (a centre vertex).
 pub fn uniaxial(
     n: usize,
     mat: MembraneMaterial,
     warp: Vector3<f64>,
     tension: f64,
 ) -> Result<(f64, f64), String> {
+    assert!(n >= 3 && n % 2 == 1, "the sheet needs a centre vertex");
     let (w, hgt) = (1.0, 1.0);
     let (mut sys, mut s) = membrane_sheet(n, n, w, hgt, mat, warp)?;
     // Pin the centre vertex: it removes rigid translation, and mesh and loads are point

@@ -317,3 +317,38 @@ fn a_tolerance_looser_than_the_step_still_moves_the_body() {
     assert!((state.v[0].y + G * h).abs() < 1e-12, "{}", state.v[0].y);
     assert!((state.x[0].y + G * h * h).abs() < 1e-12, "{}", state.x[0].y);
 }
+
+/// Warm start: a Newton step started from a good guess (here the answer of the same step
+/// started cold) reaches the same positions to the tolerance in fewer iterations (one: the
+/// guess is already converged), and a guess of the wrong length is ignored.
+#[test]
+fn a_warm_started_step_reaches_the_same_answer_in_fewer_iterations() {
+    let (mut sys, s0) = rod(10, 1.0, Vector3::zeros(), 0.1, 1e4, 1e-3);
+    sys.pinned[0] = true;
+    let settings = Settings {
+        method: Method::Newton,
+        tolerance: 1e-9,
+        max_iterations: 50,
+    };
+    let mut integ = Integrator::new(&sys).unwrap();
+    let mut cold = s0.clone();
+    let c = integ.step(&sys, &mut cold, None, 0.02, &settings).unwrap();
+    let mut warm = s0.clone();
+    let w = integ
+        .step_from(&sys, &mut warm, Some(&cold.x), None, 0.02, &settings)
+        .unwrap();
+    let dx = cold
+        .x
+        .iter()
+        .zip(&warm.x)
+        .fold(0.0f64, |m, (a, b)| m.max((a - b).amax()));
+    assert!(c.iterations > 2 && w.iterations == 1, "{c:?} {w:?}");
+    // The velocity tolerance 1e-9 m/s times h bounds the position difference.
+    assert!(dx < 1e-9 * 0.02 * 10.0, "{dx}");
+    let mut ignored = s0.clone();
+    let i = integ
+        .step_from(&sys, &mut ignored, Some(&cold.x[..3]), None, 0.02, &settings)
+        .unwrap();
+    assert_eq!(i.iterations, c.iterations);
+    assert_eq!(ignored.x, cold.x);
+}

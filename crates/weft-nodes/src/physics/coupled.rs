@@ -342,6 +342,7 @@ fn solid(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
             sys,
             ex,
             &step.start.solid,
+            (it.iteration > 0).then_some(&it.sim.solid.x[..]),
             Some(targets),
             step.h,
             &st,
@@ -361,6 +362,12 @@ fn solid(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
             step.h,
             &mut relaxation,
         );
+        if !next.x.iter().all(|p| p.iter().all(|c| c.is_finite())) {
+            return Err(failed(format!(
+                "frame {frame}: the relaxed solid iterate of coupling iteration {} is not finite (the iterations diverged)",
+                it.iteration
+            )));
+        }
     }
     ws.record(serde_json::json!({
         "frame": frame, "iteration": it.iteration, "newton_iterations": stats.iterations,
