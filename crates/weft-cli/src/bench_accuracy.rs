@@ -101,7 +101,9 @@ pub fn suite(quick: bool, out: &Path) -> Result<Summary, String> {
         orders.push((m.1.to_string(), order));
     }
     sweep::print_orders(&orders);
-    println!("\nstability map (S stable, I inaccurate > 1 cm, X blown up, F failed): rows k [N], columns h");
+    println!(
+        "\nstability map (S stable, I inaccurate > 1 cm, X blown up, F failed): rows k [N], columns h"
+    );
     sweep::print_map(&runs, &sweep::METHODS.map(|m| m.1), stiffnesses, &hs);
     // What theory fixes.
     let mut checks = Vec::new();

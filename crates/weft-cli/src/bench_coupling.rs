@@ -88,7 +88,9 @@ pub fn suite(quick: bool, out: &Path) -> Result<Checks, String> {
         |r| r.h,
         |r| r.method == "newton" && r.param == strongest,
     );
-    println!("\nstability map (S within 5 %, I further, X blown up, F failed, ? no reference): rows K/m [1/s], columns h");
+    println!(
+        "\nstability map (S within 5 %, I further, X blown up, F failed, ? no reference): rows K/m [1/s], columns h"
+    );
     sweep::print_map(&runs, &COUPLINGS.map(|m| m.1), &params, &hs);
     let mut checks: Checks = Vec::new();
     checks.push((

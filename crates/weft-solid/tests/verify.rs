@@ -347,7 +347,14 @@ fn a_warm_started_step_reaches_the_same_answer_in_fewer_iterations() {
     assert!(dx < 1e-9 * 0.02 * 10.0, "{dx}");
     let mut ignored = s0.clone();
     let i = integ
-        .step_from(&sys, &mut ignored, Some(&cold.x[..3]), None, 0.02, &settings)
+        .step_from(
+            &sys,
+            &mut ignored,
+            Some(&cold.x[..3]),
+            None,
+            0.02,
+            &settings,
+        )
         .unwrap();
     assert_eq!(i.iterations, c.iterations);
     assert_eq!(ignored.x, cold.x);
