@@ -83,15 +83,18 @@ pub fn suite(quick: bool, out: &Path) -> Result<Checks, String> {
             );
         }
     }
-    let newton_order = sweep::order_of(
-        &runs,
-        |r| r.h,
-        |r| r.method == "newton" && r.param == strongest,
-    );
+    let strongest_runs: Vec<Run> = runs
+        .iter()
+        .filter(|r| r.param == strongest)
+        .cloned()
+        .collect();
+    let methods = COUPLINGS.map(|m| m.1);
+    let orders = sweep::orders_in_step(&strongest_runs, &methods);
+    let newton_order = sweep::order_named(&orders, "newton");
     println!(
         "\nstability map (S within 5 %, I further, X blown up, F failed, ? no reference): rows K/m [1/s], columns h"
     );
-    sweep::print_map(&runs, &COUPLINGS.map(|m| m.1), &params, &hs);
+    sweep::print_map(&runs, &methods, &params, &hs);
     let mut checks: Checks = Vec::new();
     checks.push((
         "newton never blows up".into(),
@@ -162,13 +165,7 @@ pub fn suite(quick: bool, out: &Path) -> Result<Checks, String> {
             .collect();
         println!("| 1/{:.0} | {} |", 1.0 / h, cells.join(" | "));
     }
-    let sheet_orders: Vec<(String, f64)> = COUPLINGS
-        .iter()
-        .map(|m| {
-            let o = sweep::order_of(&sheet, |r| r.h, |r| r.method == m.1);
-            (m.1.to_string(), o)
-        })
-        .collect();
+    let sheet_orders = sweep::orders_in_step(&sheet, &methods);
     // α² = (1 − φ)² with φ ≈ 0.5 % where the sheet is rasterized: 1 % slower than Darcy's
     // Δρg/k; 3 % allows the sheet's spread over two face layers.
     checks.push((
@@ -178,10 +175,7 @@ pub fn suite(quick: bool, out: &Path) -> Result<Checks, String> {
         ),
         (fall / terminal - 1.0).abs() < 0.03,
     ));
-    let sheet_newton = sheet_orders
-        .iter()
-        .find(|(m, _)| m == "newton")
-        .map_or(f64::NAN, |o| o.1);
+    let sheet_newton = sweep::order_named(&sheet_orders, "newton");
     checks.push((
         format!(
             "settling sheet: newton first order in h (observed {sheet_newton:.3}, band 0.8–1.2)"
@@ -202,24 +196,12 @@ pub fn suite(quick: bool, out: &Path) -> Result<Checks, String> {
             "checks": checks,
         }),
     )?;
-    let strongest_runs: Vec<Run> = runs
-        .iter()
-        .filter(|r| r.param == strongest)
-        .cloned()
-        .collect();
     let title = format!("Light strand, K/m = {strongest:.1e} 1/s");
     crate::charts::error_vs_time(
         &strongest_runs,
         &format!("{title}: error against wall time"),
         &out.join("coupling_error_time"),
     )?;
-    let orders: Vec<(String, f64)> = COUPLINGS
-        .iter()
-        .map(|m| {
-            let o = sweep::order_of(&strongest_runs, |r| r.h, |r| r.method == m.1);
-            (m.1.to_string(), o)
-        })
-        .collect();
     crate::charts::error_vs(
         crate::charts::Across::Step,
         &strongest_runs,

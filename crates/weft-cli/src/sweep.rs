@@ -326,6 +326,22 @@ pub fn csv(runs: &[Run]) -> String {
 /// Facts checked against theory, each with whether it held.
 pub type Checks = Vec<(String, bool)>;
 
+/// The fitted order in step h of each of `methods` among `runs`.
+pub fn orders_in_step(runs: &[Run], methods: &[&str]) -> Vec<(String, f64)> {
+    methods
+        .iter()
+        .map(|m| (m.to_string(), order_of(runs, |r| r.h, |r| r.method == *m)))
+        .collect()
+}
+
+/// The order named `name` in `orders` (NaN when absent).
+pub fn order_named(orders: &[(String, f64)], name: &str) -> f64 {
+    orders
+        .iter()
+        .find(|(m, _)| m == name)
+        .map_or(f64::NAN, |o| o.1)
+}
+
 /// Prints the observed orders on one line.
 pub fn print_orders(orders: &[(String, f64)]) {
     let list: Vec<String> = orders.iter().map(|(m, o)| format!("{m} {o:.3}")).collect();
