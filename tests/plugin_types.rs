@@ -46,7 +46,7 @@ fn plugin_registry() -> Arc<Registry> {
             ),
         |_| {
             Ok(Kernel::from_fn(|cx| {
-                let n = cx.params().i64("segments");
+                let n = cx.params().i64("segments")?;
                 let pts = (0..=n).map(|i| {
                     let a = std::f64::consts::TAU * i as f64 / n as f64;
                     [a.cos(), a.sin()]

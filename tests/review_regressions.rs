@@ -157,7 +157,7 @@ fn a_parameter_that_types_an_output_cannot_change_after_load() {
             .param(ParamSpec::json("value", serde_json::json!(1.0)).doc("the value")),
         |_| {
             Ok(Kernel::from_fn(|cx| {
-                let t = cx.params().str("type").to_string();
+                let t = cx.params().str("type")?.to_string();
                 let j = cx.params().get("value").cloned().unwrap_or_default();
                 let f = cx
                     .registry()

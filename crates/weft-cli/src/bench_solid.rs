@@ -43,6 +43,7 @@ fn run(scene: Vec<SceneElement>, frames: i64) -> Result<Measured, String> {
     let settings = StepperSettings {
         substeps: 1,
         max_retries: 4,
+        max_bytes: Some(weft_graph::memory::available()),
         solver: Settings {
             tolerance: 1e-4,
             max_iterations: 200,

@@ -27,7 +27,8 @@ pub struct RunArgs {
     /// Evaluate only these outputs (repeatable) [default: all].
     #[arg(long = "output", value_name = "NAME")]
     outputs: Vec<String>,
-    /// Directory for outputs.json, outputs.csv and stats.json.
+    /// Directory for everything the run writes: outputs.json, outputs.csv, stats.json, and
+    /// the files of output and cache nodes, whose relative paths resolve under it.
     #[arg(long)]
     out: Option<PathBuf>,
     /// Print per-node evaluation counts and times after the run.
@@ -39,6 +40,40 @@ pub struct RunArgs {
     /// Print only errors and warnings.
     #[arg(long, short)]
     quiet: bool,
+    /// With --out: keep no solver checkpoints in DIR/checkpoints (a run killed and run
+    /// again then recomputes every frame instead of resuming).
+    #[arg(long)]
+    no_checkpoints: bool,
+    /// Stop the run after this many seconds (as Ctrl-C does): the frames completed before
+    /// are kept and written.
+    #[arg(long, value_name = "SECONDS")]
+    time_limit: Option<f64>,
+}
+
+/// The interrupt of the run in progress, which Ctrl-C stops. One handler serves the
+/// process; each run puts its graph's handle here.
+static CURRENT: std::sync::Mutex<Option<weft_graph::Interrupt>> = std::sync::Mutex::new(None);
+
+/// Installs the Ctrl-C handler once: the first Ctrl-C stops the run at the next iteration
+/// (the frames done are written), a second one ends the process at once.
+fn install_ctrl_c(i: &weft_graph::Interrupt) {
+    static INSTALLED: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    if let Ok(mut c) = CURRENT.lock() {
+        *c = Some(i.clone());
+    }
+    INSTALLED.get_or_init(|| {
+        ctrlc::set_handler(|| {
+            let cur = CURRENT.lock().ok().and_then(|c| c.clone());
+            match cur {
+                Some(i) if !i.is_set() => {
+                    eprintln!("\nstopping at the next iteration (Ctrl-C again to quit at once)");
+                    i.stop();
+                }
+                _ => std::process::exit(130),
+            }
+        })
+        .is_ok()
+    });
 }
 
 /// Parses `A..B` (inclusive) or `F`.
@@ -117,6 +152,22 @@ pub fn run(registry: &Arc<Registry>, a: RunArgs) -> ExitCode {
         eprintln!("error: --fps must be a positive number, got {}", a.fps);
         return ExitCode::from(2);
     }
+    g.set_output_root(a.out.clone());
+    if !a.no_checkpoints {
+        g.set_checkpoint_dir(a.out.as_ref().map(|d| d.join("checkpoints")));
+    }
+    let interrupt = g.interrupt();
+    interrupt.reset();
+    if let Some(t) = a.time_limit {
+        match std::time::Duration::try_from_secs_f64(t) {
+            Ok(d) => interrupt.set_time_limit(d),
+            Err(_) => {
+                eprintln!("error: --time-limit must be a number of seconds >= 0, got {t}");
+                return ExitCode::from(2);
+            }
+        }
+    }
+    install_ctrl_c(&interrupt);
     let outputs: Vec<String> = if a.outputs.is_empty() {
         g.output_names().map(str::to_string).collect()
     } else {
@@ -224,15 +275,24 @@ pub fn run(registry: &Arc<Registry>, a: RunArgs) -> ExitCode {
         eprintln!("warning: node '{}'{at}: {}", w.node, w.message);
     }
     if let Some(e) = failure {
+        let stopped = matches!(*e.error, weft_graph::NodeError::Interrupted(_));
         eprintln!("error: {e}");
         if !rows.is_empty() {
             eprintln!(
-                "note: frames {}..{} completed before the failure",
+                "note: frames {}..{} completed before the {}{}",
                 rows[0].0,
-                rows[rows.len() - 1].0
+                rows[rows.len() - 1].0,
+                if stopped { "stop" } else { "failure" },
+                if a.out.is_some() {
+                    " and were written"
+                } else {
+                    ""
+                },
             );
         }
-        return ExitCode::from(1);
+        // Ctrl-C is 130 by convention; a time limit is a run that did not finish (1).
+        let ctrl_c = stopped && interrupt.reason() == "interrupted";
+        return ExitCode::from(if ctrl_c { 130 } else { 1 });
     }
     code
 }

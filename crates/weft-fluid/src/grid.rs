@@ -78,7 +78,7 @@ pub enum FluidError {
         /// 0, 1, 2 for x, y, z.
         axis: usize,
     },
-    /// The grid would not fit in memory; nothing was allocated.
+    /// The grid would not fit in the memory allowed; nothing was allocated.
     ///
     /// A 4096³ grid at 1 mm cells.
     #[error(
@@ -115,15 +115,19 @@ pub struct Domain {
     pub boundaries: Boundaries,
 }
 
-/// Bytes per cell the fluid holds at most: 12 face arrays (velocity, fluid fraction, drag,
-/// solid velocity) and their advection copy, ten cell arrays (pressure, right side and CG
-/// vectors), the 7-point matrix and its incomplete factor with their indices.
-pub const BYTES_PER_CELL: u64 = 8 * (15 + 10) + 12 * 7 + 12 * 4 + 8 * 7;
+/// Bytes per cell a coupled step holds at most. A grid is 12 face arrays (velocity, fluid
+/// fraction, drag, solid velocity) and the pressure, 104 bytes a cell; a coupled step keeps
+/// about eight at once (the state, u*, the rasterized and projected iterates, the pressure
+/// gradient, the advection scratch, the loop's feedback and the frame's checkpoint), and the
+/// projection adds ten cell arrays (right side, CG vectors) and the 7-point matrix with its
+/// incomplete factor and their indices (about 190 bytes).
+pub const BYTES_PER_CELL: u64 = 8 * 104 + 8 * 10 + 12 * 7 + 12 * 4 + 8 * 7;
 
 impl Domain {
     /// A domain from its minimum corner, size and cell size; the size is rounded up to whole
-    /// cells. Refuses (before allocating anything) a grid whose estimated memory exceeds
-    /// `max_bytes` (default: the memory the system reports as available).
+    /// cells. Refuses (before allocating anything) a grid whose estimated memory
+    /// ([`BYTES_PER_CELL`]) exceeds `max_bytes`; `None`: no limit (a graph passes what the
+    /// process may still allocate).
     pub fn new(
         origin: [f64; 3],
         size: [f64; 3],
@@ -147,8 +151,9 @@ impl Domain {
         let per_axis = size.map(|s| (s / dx - 1e-9).ceil().max(1.0));
         let total: f64 = per_axis.iter().product();
         let need = total * BYTES_PER_CELL as f64;
-        let limit = max_bytes.unwrap_or_else(available_memory) as f64;
-        if need > limit || per_axis.iter().any(|&c| c > u32::MAX as f64 / 8.0) {
+        let limit = max_bytes.map_or(f64::INFINITY, |b| b as f64);
+        // Cells and faces are indexed with u32 (u32::MAX marks "none").
+        if need > limit || total >= (u32::MAX / 4) as f64 {
             const GIB: f64 = (1u64 << 30) as f64;
             return Err(FluidError::TooLarge {
                 cells: per_axis.map(|c| c.min(usize::MAX as f64) as usize),
@@ -240,20 +245,6 @@ impl Domain {
     pub fn size(&self) -> [f64; 3] {
         [0, 1, 2].map(|a| self.cells[a] as f64 * self.dx)
     }
-}
-
-/// What the system says it can still allocate (Linux `MemAvailable`), or 16 GiB if unknown.
-pub fn available_memory() -> u64 {
-    std::fs::read_to_string("/proc/meminfo")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("MemAvailable:"))
-                .and_then(|l| l.split_whitespace().nth(1))
-                .and_then(|kb| kb.parse::<u64>().ok())
-        })
-        .map(|kb| kb * 1024)
-        .unwrap_or(16 << 30)
 }
 
 /// The fluid's state and the solids' imprint on it.

@@ -25,5 +25,7 @@ pub mod viscosity;
 pub use drag::{DragParams, FluidProperties, Shape, drag_force, lift_force};
 pub use grid::{Axis, Boundaries, Boundary, Domain, FluidError, MacGrid};
 pub use obstacle::SolidFace;
-pub use pressure::{PressureSolve, PressureStats, Projection, ProjectionError, max_divergence};
+pub use pressure::{
+    PressureSolve, PressureStats, Projection, ProjectionError, StopCheck, max_divergence,
+};
 pub use viscosity::{Diffusion, DiffusionStats};

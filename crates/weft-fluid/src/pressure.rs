@@ -73,7 +73,17 @@ pub enum ProjectionError {
     /// Bad settings or a bad field (negative drag, fluid fraction outside [0, 1]).
     #[error(transparent)]
     Fluid(#[from] FluidError),
+    /// The stop check ([`Projection::set_stop`]) asked the solve to end.
+    #[error("pressure solve stopped at CG iteration {iteration}")]
+    Interrupted {
+        /// CG iteration at which it stopped.
+        iteration: usize,
+    },
 }
+
+/// Asked once per CG iteration: true when the solve should end with
+/// [`ProjectionError::Interrupted`] (Ctrl-C, a time limit, a host's cancel).
+pub type StopCheck = std::sync::Arc<dyn Fn() -> bool + Send + Sync>;
 
 /// Where a face's flux goes.
 #[derive(Clone, Copy)]
@@ -111,9 +121,16 @@ pub struct Projection {
     z: Vec<f64>,
     s: Vec<f64>,
     q: Vec<f64>,
+    stop: Option<StopCheck>,
 }
 
 impl Projection {
+    /// Sets (or clears) the check asked once per CG iteration; when it answers true the
+    /// solve ends with [`ProjectionError::Interrupted`] and the grid is left as it was.
+    pub fn set_stop(&mut self, stop: Option<StopCheck>) {
+        self.stop = stop;
+    }
+
     /// Builds the pattern for `grid`'s domain and boundaries.
     pub fn new(grid: &MacGrid) -> Self {
         let dom = &grid.domain;
@@ -215,6 +232,7 @@ impl Projection {
             z: vec![0.0; n],
             s: vec![0.0; n],
             q: vec![0.0; n],
+            stop: None,
         }
     }
 
@@ -343,7 +361,12 @@ impl Projection {
             let p0 = p[pc];
             p.iter_mut().for_each(|x| *x -= p0);
         }
-        let (iterations, residual) = self.pcg(&mut p, settings);
+        let (iterations, residual, stopped) = self.pcg(&mut p, settings);
+        if stopped {
+            return Err(ProjectionError::Interrupted {
+                iteration: iterations,
+            });
+        }
         stats.iterations = iterations;
         stats.solve_seconds = t.elapsed().as_secs_f64();
         if residual > settings.tolerance {
@@ -488,7 +511,8 @@ impl Projection {
     /// The residual is max |rᵢ|, and when a cell is pinned also |Σᵢ rᵢ|: the pinned cell's
     /// own equation was dropped, and (the system being compatible) its divergence is minus
     /// the sum of the others', so both bounds together bound every cell's divergence.
-    fn pcg(&mut self, p: &mut [f64], settings: &PressureSolve) -> (usize, f64) {
+    /// CG from `p`: (iterations, final residual, stopped by the stop check).
+    fn pcg(&mut self, p: &mut [f64], settings: &PressureSolve) -> (usize, f64, bool) {
         let mut ap = std::mem::take(&mut self.q);
         self.matvec(p, &mut ap);
         for ((r, b), a) in self.r.iter_mut().zip(&self.b).zip(&ap) {
@@ -506,18 +530,21 @@ impl Projection {
         };
         let mut res = norm(&self.r);
         if res <= settings.tolerance {
-            return (0, res);
+            return (0, res, false);
         }
         self.precondition();
         self.s.copy_from_slice(&self.z);
         let mut rz: f64 = self.r.iter().zip(&self.z).map(|(a, b)| a * b).sum();
         for it in 1..=settings.max_iterations {
+            if self.stop.as_ref().is_some_and(|s| s()) {
+                return (it - 1, res, true);
+            }
             let mut q = std::mem::take(&mut self.q);
             self.matvec(&self.s, &mut q);
             let sq: f64 = self.s.iter().zip(&q).map(|(a, b)| a * b).sum();
             if sq.is_nan() || sq <= 0.0 {
                 self.q = q;
-                return (it, res);
+                return (it, res, false);
             }
             let alpha = rz / sq;
             for i in 0..self.n {
@@ -527,7 +554,7 @@ impl Projection {
             self.q = q;
             res = norm(&self.r);
             if res <= settings.tolerance {
-                return (it, res);
+                return (it, res, false);
             }
             self.precondition();
             let rz_new: f64 = self.r.iter().zip(&self.z).map(|(a, b)| a * b).sum();
@@ -537,7 +564,7 @@ impl Projection {
                 self.s[i] = self.z[i] + beta * self.s[i];
             }
         }
-        (settings.max_iterations, res)
+        (settings.max_iterations, res, false)
     }
 }
 

@@ -46,7 +46,7 @@ pub struct RasterStats {
 /// equal parts (spacing at most dx/2), as interpolation weights of its two ends. Returns n
 /// (each sample carries 1/n of the segment) and the weights.
 pub fn segment_lattice(len: f64, dx: f64) -> (usize, impl Iterator<Item = [f64; 2]>) {
-    let n = ((2.0 * len / dx).ceil() as usize).max(1);
+    let n = segment_samples(len, dx);
     let weights = (0..n).map(move |s| {
         let t = (s as f64 + 0.5) / n as f64;
         [1.0 - t, t]
@@ -59,7 +59,7 @@ pub fn segment_lattice(len: f64, dx: f64) -> (usize, impl Iterator<Item = [f64; 
 /// barycentric weights. Returns the sample count n² (each carries 1/n² of the triangle) and
 /// the weights.
 pub fn triangle_lattice(longest: f64, dx: f64) -> (usize, impl Iterator<Item = [f64; 3]>) {
-    let n = ((2.0 * longest / dx).ceil() as usize).max(1);
+    let n = lattice_side(longest, dx);
     let nf = n as f64;
     let weights = (0..n).flat_map(move |i| {
         (0..n - i).flat_map(move |j| {
@@ -71,6 +71,25 @@ pub fn triangle_lattice(longest: f64, dx: f64) -> (usize, impl Iterator<Item = [
         })
     });
     (n * n, weights)
+}
+
+/// Samples along a segment of length `len` at cell size `dx` (⌈2 len/dx⌉, at least 1;
+/// saturating, so a length of 10¹⁰⁰ cells counts as usize::MAX rather than overflowing).
+pub fn segment_samples(len: f64, dx: f64) -> usize {
+    let n = (2.0 * len / dx).ceil();
+    if n.is_nan() { 1 } else { (n as usize).max(1) }
+}
+
+/// Sub-triangles along each edge of a triangle whose longest edge is `longest`.
+fn lattice_side(longest: f64, dx: f64) -> usize {
+    segment_samples(longest, dx)
+}
+
+/// Samples over a triangle whose longest edge is `longest` (n², saturating), without making
+/// them: what a caller checks against its memory budget first.
+pub fn triangle_samples(longest: f64, dx: f64) -> usize {
+    let n = lattice_side(longest, dx);
+    n.saturating_mul(n)
 }
 
 fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {

@@ -36,6 +36,7 @@ pub struct Diffusion {
     /// Each component's solution until all three are solved (the grid is left unchanged on
     /// error).
     solved: [Vec<f64>; 3],
+    stop: Option<crate::pressure::StopCheck>,
 }
 
 /// One velocity component's unknowns.
@@ -177,8 +178,15 @@ impl Diffusion {
             u: vec![0.0; n],
             b: vec![0.0; n],
             solved: [0, 1, 2].map(|a| vec![0.0; axes[a].face.len()]),
+            stop: None,
             axes,
         }
+    }
+
+    /// Sets (or clears) the check asked once per CG iteration; when it answers true the
+    /// solve ends with [`ProjectionError::Interrupted`] and the grid is left as it was.
+    pub fn set_stop(&mut self, stop: Option<crate::pressure::StopCheck>) {
+        self.stop = stop;
     }
 
     /// True when this structure was built for `grid`'s domain.
@@ -254,6 +262,11 @@ impl Diffusion {
             let mut it = 0;
             let mut rz = 0.0;
             while res > settings.tolerance {
+                if self.stop.as_ref().is_some_and(|s| s()) {
+                    return Err(ProjectionError::Interrupted {
+                        iteration: stats.iterations + it,
+                    });
+                }
                 if it == settings.max_iterations {
                     return Err(ProjectionError::NotConverged {
                         iterations: stats.iterations + it,

@@ -16,8 +16,41 @@ use std::collections::{HashMap, VecDeque};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
+const TMP_PREFIX: &str = ".weft-tmp-";
+
+/// Removes the temporary files that killed processes left in `dir` (named
+/// `.weft-tmp-PID-…`, PID no longer running), once per directory per process. A file of a
+/// process that is still running (another run writing there) is left alone.
+fn sweep_stale_temporaries(dir: &Path) {
+    static SWEPT: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+    let Ok(mut swept) = SWEPT.lock() else { return };
+    if swept.iter().any(|d| d == dir) || !Path::new("/proc/self").exists() {
+        return;
+    }
+    swept.push(dir.to_path_buf());
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let name = e.file_name();
+        let Some(rest) = name.to_str().and_then(|n| n.strip_prefix(TMP_PREFIX)) else {
+            continue;
+        };
+        let pid = rest.split('-').next().and_then(|p| p.parse::<u32>().ok());
+        if let Some(pid) = pid
+            && pid != std::process::id()
+            && !Path::new(&format!("/proc/{pid}")).exists()
+        {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
+}
+
 /// Writes a file atomically: `fill` writes into a temporary file next to `path`, which is
-/// renamed over `path` only if `fill` succeeds. On error the temporary file is removed.
+/// flushed to disk and renamed over `path` only if `fill` succeeds, so a reader (or a run
+/// killed at any moment) sees the old file or the new one, never a part. On error the
+/// temporary file is removed; one a killed process left behind is removed by the next
+/// write into the same directory.
 pub fn atomic_write_with(
     path: &Path,
     fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
@@ -27,8 +60,9 @@ pub fn atomic_write_with(
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
     std::fs::create_dir_all(dir)?;
+    sweep_stale_temporaries(dir);
     let mut tmp = tempfile::Builder::new()
-        .prefix(".weft-tmp-")
+        .prefix(&format!("{TMP_PREFIX}{}-", std::process::id()))
         .tempfile_in(dir)?;
     {
         let mut w = std::io::BufWriter::new(tmp.as_file_mut());
@@ -103,7 +137,7 @@ impl Compute for MemoryCache {
         }
         self.misses += 1;
         let v = cx.input("in")?;
-        let cap = cx.params().i64("max_frames").max(1) as usize;
+        let cap = cx.params().i64("max_frames")?.max(1) as usize;
         while self.order.len() >= cap {
             if let Some(old) = self.order.pop_front() {
                 self.entries.remove(&old);
@@ -141,7 +175,7 @@ impl DiskCache {
 
 impl Compute for DiskCache {
     fn compute(&mut self, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
-        let dir = PathBuf::from(cx.params().str("path"));
+        let dir = cx.output_path("path")?;
         let key = cx.input_hash("in")?;
         let timed = cx.input_time_dependent("in");
         let frame = if timed { cx.frame() } else { 0 };
@@ -158,10 +192,11 @@ impl Compute for DiskCache {
         }
         let v = cx.input("in")?;
         let pt = cx.registry().port_type_by_id(v.payload_type_id()).cloned();
-        let (name, payload) = match pt
-            .as_ref()
-            .and_then(|t| Some((t.name.clone(), (t.encode?)(&v)?)))
-        {
+        let (name, payload) = match pt.as_ref().and_then(|t| {
+            // Only a type that decodes on its own can be read back from a cache.
+            t.decode?;
+            Some((t.name.clone(), (t.encode?)(&v)?))
+        }) {
             Some(x) => x,
             None => {
                 let n = pt
@@ -222,10 +257,10 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         )
         .input("in", "any", "value to cache (its type needs a byte codec)")
         .output("out", "same:in", "the cached value")
-        .param(ParamSpec::string("path", "").required().doc("directory of the cache files (relative to the working directory)"))
+        .param(ParamSpec::string("path", "").required().doc("directory of the cache files (under --out when given, else the working directory)"))
         .lazy(),
         |p| {
-            if p.str("path").is_empty() {
+            if p.str("path")?.is_empty() {
                 return Err("param 'path' must not be empty".into());
             }
             Ok(Kernel::Compute(Box::new(DiskCache::default())))

@@ -391,6 +391,8 @@ struct Pre<'a> {
     decl: &'a NodeDecl,
     spec: Arc<NodeSpec>,
     factory: Factory,
+    /// Every parameter validated (present, of its kind, in range).
+    params_ok: bool,
     params: Params,
     conns: Vec<Vec<Src>>,
 }
@@ -518,6 +520,10 @@ pub(crate) fn compile_body(
                 format!("stateful node type '{}' cannot run inside {what}: the inner graph sees only the current frame's inputs, so its state would restart whenever they change (use it outside; a stepped subgraph is itself the stateful node)", spec.name),
             ).node(id));
         }
+        // A node whose parameters did not all validate never reaches its factory (nor has an
+        // output type read from a parameter): factories may rely on every declared parameter
+        // being present, of its kind and in range.
+        let errors_before = d.len();
         let mut values = BTreeMap::new();
         for (k, v) in &decl.params {
             let path = || decl.at(&["params", k]);
@@ -558,11 +564,13 @@ pub(crate) fn compile_body(
             }
         }
         let n_in = spec.inputs.len();
+        let params_ok = d.len() == errors_before;
         pre.push(Pre {
             id,
             decl,
             spec,
             factory,
+            params_ok,
             params: Params::from_map(values),
             conns: vec![Vec::new(); n_in],
         });
@@ -727,7 +735,11 @@ pub(crate) fn compile_body(
                     }
                 }
                 TypeRef::FromParam(pp) => {
-                    let t = p.params.str(pp).to_string();
+                    // An invalid parameter was reported above; its output stays "any".
+                    let t = match p.params.get(pp).and_then(|v| v.as_str()) {
+                        Some(t) if p.params_ok => t.to_string(),
+                        _ => "any".to_string(),
+                    };
                     if t != "any" && env.registry.port_type(&t).is_none() {
                         let path = p
                             .decl
@@ -754,9 +766,15 @@ pub(crate) fn compile_body(
     if has_cycle {
         return None;
     }
-    // Factories may reject parameter combinations.
+    // Factories may reject parameter combinations. They run only on parameters that all
+    // validated: a node with a bad parameter already has its error, and its factory would
+    // read a value that is not there.
     let mut kernels = Vec::with_capacity(pre.len());
     for p in &pre {
+        if !p.params_ok {
+            kernels.push(None);
+            continue;
+        }
         match (p.factory)(&p.params) {
             Ok(k) => kernels.push(Some(k)),
             Err(m) => {

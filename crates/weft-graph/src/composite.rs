@@ -283,6 +283,13 @@ impl CompositeKernel {
         cx: &mut EvalCx<'_>,
         overrides: &[(usize, Value)],
     ) -> Result<Vec<Value>, NodeError> {
+        let stop = cx.interrupt();
+        if !self.inner.interrupt().same(&stop) {
+            self.inner.set_interrupt(stop);
+        }
+        if self.inner.output_root() != cx.output_root() {
+            self.inner.set_output_root(cx.output_root().map(Into::into));
+        }
         for i in 0..self.plan.inputs.len() {
             let v = match overrides.iter().find(|(k, _)| *k == i) {
                 Some((_, v)) => Some(v.clone()),
@@ -296,7 +303,7 @@ impl CompositeKernel {
         let node = cx.node_id().to_string();
         let plan = self.plan.clone();
         if let Some(it) = &plan.iterate {
-            let max = cx.params().i64("max_iterations").max(1) as usize;
+            let max = cx.params().i64("max_iterations")?.max(1) as usize;
             let mut report = FrameReport {
                 frame: ctx.frame,
                 converged: false,
@@ -456,5 +463,56 @@ impl Step for Stepped {
     }
     fn stats_json(&self) -> Option<serde_json::Value> {
         self.0.report_json()
+    }
+    /// Each output's payload through its port type's encoding; `None` when one has none.
+    fn save_state(&self, state: &Value, registry: &crate::Registry) -> Option<Vec<u8>> {
+        let s = state.get::<Vec<Value>>()?;
+        let mut w = crate::codec::Writer::new();
+        w.u64(s.len() as u64);
+        for v in s {
+            let t = registry.port_type_by_id(v.payload_type_id())?;
+            w.bytes(t.name.as_bytes()).bytes(&(t.encode?)(v)?);
+        }
+        Some(w.finish())
+    }
+    fn load_state(
+        &mut self,
+        bytes: &[u8],
+        initial: &Value,
+        cx: &mut EvalCx<'_>,
+    ) -> Result<Value, NodeError> {
+        let bad = |m: String| NodeError::Failed(format!("checkpoint: {m}"));
+        let init = initial
+            .get::<Vec<Value>>()
+            .ok_or_else(|| bad("the start state is not a composite state".into()))?;
+        let mut inputs = Vec::new();
+        for name in self.0.plan.inputs.clone() {
+            if let Some(v) = cx.input_opt(&name)? {
+                inputs.push((name, v));
+            }
+        }
+        let mut r = crate::codec::Reader::new(bytes);
+        let n = r.u64().map_err(bad)?;
+        if n != init.len() as u64 {
+            return Err(bad(format!("{n} values, the node has {}", init.len())));
+        }
+        let mut out = Vec::with_capacity(init.len());
+        for template in init {
+            let name = String::from_utf8_lossy(r.bytes().map_err(bad)?).into_owned();
+            let payload = r.bytes().map_err(bad)?;
+            let t = cx
+                .registry()
+                .port_type(&name)
+                .ok_or_else(|| bad(format!("unknown port type '{name}'")))?;
+            let v = match (t.decode, t.restore) {
+                (Some(d), _) => d(payload),
+                (None, Some(f)) => f(payload, template, &inputs),
+                (None, None) => Err(format!("'{name}' cannot be restored")),
+            }
+            .map_err(bad)?;
+            out.push(v);
+        }
+        r.end().map_err(bad)?;
+        Ok(Value::new(out))
     }
 }

@@ -12,6 +12,7 @@
 //!   only lazy-input and stateful nodes pull recursively, one level per such node.
 
 use crate::diag::{Diagnostic, nearest};
+use crate::interrupt::Interrupt;
 use crate::node::{EvalCx, EvalError, Kernel, NodeError};
 use crate::params::{Params, check_param};
 use crate::registry::{Factory, Registry};
@@ -60,6 +61,8 @@ pub struct NodeStats {
     pub cache_hits: u64,
     /// Stateful nodes: frame steps taken.
     pub steps: u64,
+    /// Stateful nodes: states restored from disk checkpoints instead of stepped.
+    pub restored: u64,
     /// Time spent in the node itself, excluding upstream nodes it pulled.
     pub seconds: f64,
 }
@@ -173,6 +176,9 @@ pub struct Graph {
     mark: Vec<u32>,
     mark_gen: u32,
     pub(crate) load_warnings: Vec<Diagnostic>,
+    interrupt: Interrupt,
+    output_root: Option<std::path::PathBuf>,
+    checkpoint_dir: Option<std::path::PathBuf>,
 }
 
 /// The first non-finite number in a float-valued payload (`float`, `vec3`, `floats`).
@@ -212,6 +218,9 @@ impl Graph {
             mark: Vec::new(),
             mark_gen: 0,
             load_warnings: Vec::new(),
+            interrupt: Interrupt::new(),
+            output_root: None,
+            checkpoint_dir: None,
         }
     }
 
@@ -243,6 +252,35 @@ impl Graph {
             self.slots[n].eff_static = eff_static;
         }
         self.mark = vec![0; self.slots.len()];
+    }
+
+    /// The handle that stops this graph's evaluations (clone it to a Ctrl-C handler, or set
+    /// a time limit on it). Composite instances share their outer graph's.
+    pub fn interrupt(&self) -> Interrupt {
+        self.interrupt.clone()
+    }
+    /// Makes `i` the handle that stops this graph.
+    pub fn set_interrupt(&mut self, i: Interrupt) {
+        self.interrupt = i;
+    }
+
+    /// Makes `root` the directory that output nodes' relative paths resolve under (`weft run
+    /// --out`); `None`: the working directory. Paths that leave it are refused.
+    pub fn set_output_root(&mut self, root: Option<std::path::PathBuf>) {
+        self.output_root = root;
+    }
+    /// See [`Graph::set_output_root`].
+    pub fn output_root(&self) -> Option<&std::path::Path> {
+        self.output_root.as_deref()
+    }
+
+    /// Keeps every frame's state of stateful nodes that support it ([`crate::Step::save_state`])
+    /// in `dir` (`DIR/NODE/frame_NNNNNN.wstate`, written atomically, keyed by everything the
+    /// node depends on), and resumes from them: a frame whose state is on disk is restored
+    /// instead of stepped, bit for bit, so a run killed at frame k and run again recomputes
+    /// nothing before k. `None`: memory checkpoints only.
+    pub fn set_checkpoint_dir(&mut self, dir: Option<std::path::PathBuf>) {
+        self.checkpoint_dir = dir;
     }
 
     /// The registry this graph was compiled with.
@@ -390,7 +428,20 @@ impl Graph {
         }
     }
 
+    fn interrupted(&self, n: usize, frame: i64) -> Result<(), EvalError> {
+        if !self.interrupt.is_set() {
+            return Ok(());
+        }
+        let s = &self.slots[n];
+        Err(EvalError {
+            node: s.id.clone(),
+            frame: (!s.eff_static).then_some(frame),
+            error: Box::new(NodeError::Interrupted(self.interrupt.reason())),
+        })
+    }
+
     fn evaluate(&mut self, n: usize, ctx: Context) -> Result<(), EvalError> {
+        self.interrupted(n, ctx.frame)?;
         let t0 = Instant::now();
         self.timers.push(Duration::ZERO);
         let result: Result<Vec<Option<Value>>, (NodeError, i64)> = if self.slots[n].kernel.is_none()
@@ -487,7 +538,10 @@ impl Graph {
         k: &mut dyn crate::node::Step,
         ctx: Context,
     ) -> Result<Vec<Option<Value>>, (NodeError, i64)> {
-        let start = self.slots[n].params.i64("start_frame");
+        let start = self.slots[n]
+            .params
+            .i64("start_frame")
+            .map_err(|e| (e.into(), ctx.frame))?;
         if self.slots[n].ckpt_fps != ctx.fps {
             self.slots[n].checkpoints.clear();
             self.slots[n].ckpt_fps = ctx.fps;
@@ -499,7 +553,15 @@ impl Graph {
             .range(start..=f)
             .next_back()
             .map(|(a, s)| (*a, s.clone()));
-        let (mut at, mut state) = match resume {
+        let newer_on_disk =
+            self.checkpoint_dir.is_some() && resume.as_ref().is_none_or(|(a, _)| *a < f);
+        let from_disk = if newer_on_disk {
+            let lo = resume.as_ref().map_or(start, |(a, _)| *a) + 1;
+            self.restore_from_disk(n, k, lo, f, start, ctx)?
+        } else {
+            None
+        };
+        let (mut at, mut state) = match from_disk.or(resume) {
             Some(r) => r,
             None => {
                 let mut cx = self.cx(n, ctx.with_frame(start));
@@ -509,15 +571,133 @@ impl Graph {
             }
         };
         while at < f {
+            if self.interrupt.is_set() {
+                return Err((NodeError::Interrupted(self.interrupt.reason()), at + 1));
+            }
             at += 1;
             let mut cx = self.cx(n, ctx.with_frame(at));
             state = k.step(&state, &mut cx).map_err(|e| (e, at))?;
             self.slots[n].checkpoints.insert(at, state.clone());
             self.slots[n].stats.steps += 1;
+            self.save_to_disk(n, k, at, &state, ctx.fps);
         }
         let mut cx = self.cx(n, ctx);
         k.outputs(&state, &mut cx).map_err(|e| (e, ctx.frame))?;
         Ok(cx.outputs)
+    }
+
+    /// The key a node's disk checkpoints carry: its structure (type, parameters, kernel,
+    /// everything upstream) and the frame rate.
+    fn checkpoint_key(&mut self, n: usize, fps: f64) -> u128 {
+        let mut h = Xxh3::new();
+        h.update(b"weft-checkpoint-1");
+        h.update(&self.structural_hash(n).to_le_bytes());
+        h.update(&fps.to_le_bytes());
+        h.digest128()
+    }
+
+    fn checkpoint_file(&self, n: usize, frame: i64) -> Option<std::path::PathBuf> {
+        let dir = self.checkpoint_dir.as_ref()?;
+        Some(
+            dir.join(&self.slots[n].id)
+                .join(format!("frame_{frame:06}.wstate")),
+        )
+    }
+
+    /// The newest state of `n` on disk for a frame in `lo..=hi` whose key matches, restored.
+    /// A damaged or stale file is skipped (the frame is then stepped); only the node's own
+    /// failure to restore a valid file is an error.
+    fn restore_from_disk(
+        &mut self,
+        n: usize,
+        k: &mut dyn crate::node::Step,
+        lo: i64,
+        hi: i64,
+        start: i64,
+        ctx: Context,
+    ) -> Result<Option<(i64, Value)>, (NodeError, i64)> {
+        let Some(dir) = self
+            .checkpoint_dir
+            .as_ref()
+            .map(|d| d.join(&self.slots[n].id))
+        else {
+            return Ok(None);
+        };
+        let Ok(entries) = std::fs::read_dir(&dir) else {
+            return Ok(None);
+        };
+        let mut frames: Vec<i64> = entries
+            .flatten()
+            .filter_map(|e| {
+                e.file_name()
+                    .to_str()?
+                    .strip_prefix("frame_")?
+                    .strip_suffix(".wstate")?
+                    .parse()
+                    .ok()
+            })
+            .filter(|f| (lo..=hi).contains(f) && *f > start)
+            .collect();
+        frames.sort_unstable();
+        let key = self.checkpoint_key(n, ctx.fps);
+        for frame in frames.into_iter().rev() {
+            let Some(path) = self.checkpoint_file(n, frame) else {
+                break;
+            };
+            let Ok(bytes) = std::fs::read(&path) else {
+                continue;
+            };
+            let Some((_, payload)) = crate::cache::decode_frame(&bytes, key, frame) else {
+                continue;
+            };
+            let initial = match self.slots[n].checkpoints.get(&start) {
+                Some(s) => s.clone(),
+                None => {
+                    let mut cx = self.cx(n, ctx.with_frame(start));
+                    let s = k.init(&mut cx).map_err(|e| (e, start))?;
+                    self.slots[n].checkpoints.insert(start, s.clone());
+                    s
+                }
+            };
+            let mut cx = self.cx(n, ctx.with_frame(frame));
+            let state = k
+                .load_state(payload, &initial, &mut cx)
+                .map_err(|e| (e, frame))?;
+            self.slots[n].checkpoints.insert(frame, state.clone());
+            self.slots[n].stats.restored += 1;
+            return Ok(Some((frame, state)));
+        }
+        Ok(None)
+    }
+
+    /// Writes `state` (frame `at`) to the checkpoint directory, atomically. A failed write
+    /// is a warning: the run goes on, only resuming loses that frame.
+    fn save_to_disk(
+        &mut self,
+        n: usize,
+        k: &dyn crate::node::Step,
+        at: i64,
+        state: &Value,
+        fps: f64,
+    ) {
+        let Some(path) = self.checkpoint_file(n, at) else {
+            return;
+        };
+        let Some(payload) = k.save_state(state, &self.registry) else {
+            return;
+        };
+        let key = self.checkpoint_key(n, fps);
+        let bytes = crate::cache::encode_frame(key, at, "state", &payload);
+        if let Err(e) = crate::cache::atomic_write(&path, &bytes) {
+            self.push_warning(
+                n,
+                Some(at),
+                format!(
+                    "cannot write the checkpoint {}: {e} (resuming will recompute this frame)",
+                    path.display()
+                ),
+            );
+        }
     }
 
     /// Pushes dirtiness from `n` to everything downstream; drops caches, hashes, checkpoints.

@@ -20,7 +20,7 @@
 //! reg.register(
 //!     NodeSpec::new("const", "a number").output("out", "float", "the number")
 //!         .param(ParamSpec::float("value", 0.0)),
-//!     |_| Ok(Kernel::from_fn(|cx| { let v = cx.params().f64("value"); cx.set("out", v); Ok(()) })),
+//!     |_| Ok(Kernel::from_fn(|cx| { let v = cx.params().f64("value")?; cx.set("out", v); Ok(()) })),
 //! ).unwrap();
 //! let reg = Arc::new(reg);
 //! let text = r#"{"format": "weft-graph", "version": 1,
@@ -32,14 +32,18 @@
 #![warn(missing_docs)]
 
 mod cache;
+pub mod codec;
 mod compile;
 mod composite;
 mod diag;
 mod engine;
 mod file;
+mod interrupt;
 mod locate;
+pub mod memory;
 mod node;
 mod params;
+mod paths;
 mod registry;
 mod spec;
 mod value;
@@ -49,8 +53,10 @@ pub use compile::{library_specs, load_path, load_str};
 pub use diag::{Diagnostic, LoadError, Severity};
 pub use engine::{Context, Graph, NodeReport, NodeStats, RunWarning};
 pub use file::{FORMAT, SUPPORTED_VERSIONS};
+pub use interrupt::Interrupt;
 pub use node::{Compute, EvalCx, EvalError, Kernel, NodeError, Step};
-pub use params::{Params, check_param};
+pub use params::{ParamError, Params, check_param};
+pub use paths::resolve_output;
 pub use registry::{Factory, NodeType, Registry, RegistryError};
 pub use spec::{NodeSpec, ParamKind, ParamSpec, PortSpec, TimeClass, TypeRef};
 pub use value::{PortType, Value, builtin_port_types};

@@ -34,9 +34,27 @@ pub enum NodeError {
         /// Residual at the last iteration.
         residual: f64,
     },
+    /// The evaluation was asked to stop (Ctrl-C, a time limit, a host) before it finished;
+    /// what was computed before stays valid.
+    ///
+    /// `NodeError::Interrupted("time limit of 30 s reached".into())`
+    #[error("{0}")]
+    Interrupted(String),
     /// An upstream node failed; its own error is passed on unchanged.
     #[error("{0}")]
     Upstream(Box<EvalError>),
+}
+
+impl From<crate::memory::MemoryError> for NodeError {
+    fn from(e: crate::memory::MemoryError) -> Self {
+        NodeError::Failed(e.to_string())
+    }
+}
+
+impl From<crate::params::ParamError> for NodeError {
+    fn from(e: crate::params::ParamError) -> Self {
+        NodeError::Failed(e.to_string())
+    }
 }
 
 /// A failure during evaluation: which node, at which frame, and why.
@@ -82,6 +100,24 @@ pub trait Step: Send {
     /// See [`Compute::stats_json`].
     fn stats_json(&self) -> Option<serde_json::Value> {
         None
+    }
+    /// The bytes of `state` for a disk checkpoint ([`crate::Graph::set_checkpoint_dir`]),
+    /// restored bit for bit by [`Step::load_state`]; `None`: this node keeps no disk
+    /// checkpoints (a resumed run recomputes it from the start frame).
+    fn save_state(&self, _state: &Value, _registry: &crate::Registry) -> Option<Vec<u8>> {
+        None
+    }
+    /// The state [`Step::save_state`] wrote, at the frame of `cx`; `initial` is the state at
+    /// the start frame (for what the bytes do not carry, such as a compiled scene).
+    fn load_state(
+        &mut self,
+        _bytes: &[u8],
+        _initial: &Value,
+        _cx: &mut EvalCx<'_>,
+    ) -> Result<Value, NodeError> {
+        Err(NodeError::Failed(
+            "this node keeps no disk checkpoints".into(),
+        ))
     }
 }
 
@@ -224,6 +260,29 @@ impl EvalCx<'_> {
     pub fn warn(&mut self, message: impl Into<String>) {
         let (node, frame) = (self.node, self.ctx.frame);
         self.graph.push_warning(node, Some(frame), message.into());
+    }
+    /// The handle that says when to stop: long-running kernels pass
+    /// [`crate::Interrupt::checker`] to their solvers and fail with
+    /// [`NodeError::Interrupted`] when it is set.
+    pub fn interrupt(&self) -> crate::Interrupt {
+        self.graph.interrupt()
+    }
+    /// The directory output paths resolve under (see [`Graph::set_output_root`]).
+    pub fn output_root(&self) -> Option<&std::path::Path> {
+        self.graph.output_root()
+    }
+    /// Where output parameter `param` (a file or directory path) points: resolved under the
+    /// output root when there is one, and refused, naming the parameter, when it leaves it
+    /// (`..`, or an absolute path elsewhere) or is empty.
+    pub fn output_path(&self, param: &str) -> Result<std::path::PathBuf, NodeError> {
+        let rel = self.params.str(param)?;
+        crate::paths::resolve_output(self.graph.output_root(), rel)
+            .map_err(|m| NodeError::Failed(format!("param '{param}': {m}")))
+    }
+    /// What this evaluation may still allocate [bytes] ([`crate::memory::available`]):
+    /// kernels refuse anything a parameter sizes beyond it, before allocating.
+    pub fn memory_budget(&self) -> u64 {
+        crate::memory::available()
     }
     /// The registry the graph was compiled with.
     pub fn registry(&self) -> &crate::Registry {

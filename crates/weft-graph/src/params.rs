@@ -5,11 +5,29 @@ use std::collections::BTreeMap;
 use std::ops::Bound;
 
 /// A node's parameters after validation: every declared parameter present (defaults filled),
-/// every value of the declared kind and in range. Getters therefore cannot fail for declared
-/// names; they panic only on a name the node's own spec does not declare (a programming error).
+/// every value of the declared kind and in range. The engine runs a node's factory and kernel
+/// only on a set that validated completely, so a getter fails only when a node reads a name
+/// its own spec does not declare, or as another kind: a programming error, which still comes
+/// back as a [`ParamError`] (and from there a node error naming the node), never as a panic.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Params {
     values: BTreeMap<String, serde_json::Value>,
+}
+
+/// A parameter read that the validated set cannot answer.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("parameter '{name}': {problem}")]
+pub struct ParamError {
+    /// The parameter.
+    pub name: String,
+    /// What is wrong: not declared, or not of the kind asked for.
+    pub problem: &'static str,
+}
+
+impl From<ParamError> for String {
+    fn from(e: ParamError) -> String {
+        e.to_string()
+    }
 }
 
 impl Params {
@@ -23,40 +41,56 @@ impl Params {
         self.values.get(name)
     }
 
-    fn must(&self, name: &str) -> &serde_json::Value {
-        self.values
-            .get(name)
-            .unwrap_or_else(|| panic!("parameter '{name}' is not declared by the node's spec"))
+    fn read<'a, T>(
+        &'a self,
+        name: &str,
+        kind: &'static str,
+        f: impl FnOnce(&'a serde_json::Value) -> Option<T>,
+    ) -> Result<T, ParamError> {
+        let v = self.values.get(name).ok_or_else(|| ParamError {
+            name: name.to_string(),
+            problem: "not declared by the node's spec",
+        })?;
+        f(v).ok_or(ParamError {
+            name: name.to_string(),
+            problem: kind,
+        })
     }
 
     /// A float parameter.
-    pub fn f64(&self, name: &str) -> f64 {
-        self.must(name).as_f64().unwrap_or(f64::NAN)
+    pub fn f64(&self, name: &str) -> Result<f64, ParamError> {
+        self.read(name, "is not a number", serde_json::Value::as_f64)
     }
     /// An integer parameter.
-    pub fn i64(&self, name: &str) -> i64 {
-        self.must(name).as_i64().unwrap_or_default()
+    pub fn i64(&self, name: &str) -> Result<i64, ParamError> {
+        self.read(name, "is not an integer", serde_json::Value::as_i64)
+    }
+    /// An integer parameter as a count or size (validated ranges keep counts non-negative).
+    pub fn usize(&self, name: &str) -> Result<usize, ParamError> {
+        self.read(name, "is not a non-negative integer", |v| {
+            v.as_u64().and_then(|x| usize::try_from(x).ok())
+        })
     }
     /// A boolean parameter.
-    pub fn bool(&self, name: &str) -> bool {
-        self.must(name).as_bool().unwrap_or_default()
+    pub fn bool(&self, name: &str) -> Result<bool, ParamError> {
+        self.read(name, "is not true or false", serde_json::Value::as_bool)
     }
     /// A string or enum parameter.
-    pub fn str(&self, name: &str) -> &str {
-        self.must(name).as_str().unwrap_or_default()
+    pub fn str(&self, name: &str) -> Result<&str, ParamError> {
+        self.read(name, "is not a string", serde_json::Value::as_str)
     }
     /// A vec3 parameter.
-    pub fn vec3(&self, name: &str) -> [f64; 3] {
-        let v = self.must(name);
-        let c = |i: usize| v.get(i).and_then(|x| x.as_f64()).unwrap_or(f64::NAN);
-        [c(0), c(1), c(2)]
+    pub fn vec3(&self, name: &str) -> Result<[f64; 3], ParamError> {
+        self.read(name, "is not [x, y, z]", |v| {
+            let a = v.as_array().filter(|a| a.len() == 3)?;
+            Some([a[0].as_f64()?, a[1].as_f64()?, a[2].as_f64()?])
+        })
     }
     /// A float-list parameter.
-    pub fn floats(&self, name: &str) -> Vec<f64> {
-        self.must(name)
-            .as_array()
-            .map(|a| a.iter().filter_map(|x| x.as_f64()).collect())
-            .unwrap_or_default()
+    pub fn floats(&self, name: &str) -> Result<Vec<f64>, ParamError> {
+        self.read(name, "is not a list of numbers", |v| {
+            v.as_array()?.iter().map(|x| x.as_f64()).collect()
+        })
     }
     /// All parameters, sorted by name.
     pub fn iter(&self) -> impl Iterator<Item = (&String, &serde_json::Value)> {

@@ -110,6 +110,10 @@ pub type ToJson = fn(&Value) -> Option<serde_json::Value>;
 pub type Encode = fn(&Value) -> Option<Vec<u8>>;
 /// Decodes bytes written by the matching `Encode`.
 pub type Decode = fn(&[u8]) -> Result<Value, String>;
+/// Decodes bytes written by the matching `Encode` for a payload that shares parts it does
+/// not store (a compiled scene behind an `Arc`): `template` is the same node's value at its
+/// start frame, `inputs` its inputs (by port name) at the frame being restored.
+pub type Restore = fn(&[u8], &Value, &[(String, Value)]) -> Result<Value, String>;
 
 /// A named value type that ports can carry.
 #[derive(Clone)]
@@ -130,6 +134,9 @@ pub struct PortType {
     pub encode: Option<Encode>,
     /// Bytes → value (disk caches).
     pub decode: Option<Decode>,
+    /// Bytes + the start frame's value → value (disk checkpoints of stateful composites,
+    /// for payloads that `decode` alone cannot rebuild).
+    pub restore: Option<Restore>,
 }
 
 impl PortType {
@@ -144,6 +151,7 @@ impl PortType {
             to_json: None,
             encode: None,
             decode: None,
+            restore: None,
         }
     }
 
@@ -158,6 +166,14 @@ impl PortType {
     pub fn with_codec(mut self, encode: Encode, decode: Decode) -> Self {
         self.encode = Some(encode);
         self.decode = Some(decode);
+        self
+    }
+
+    /// Adds an encoding restored against the start frame's value (see [`Restore`]): enough
+    /// for disk checkpoints, not for disk caches.
+    pub fn with_restore(mut self, encode: Encode, restore: Restore) -> Self {
+        self.encode = Some(encode);
+        self.restore = Some(restore);
         self
     }
 }

@@ -26,7 +26,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         );
     }
     r.register(spec, |p| {
-        let text = p.str("expr");
+        let text = p.str("expr")?;
         let ex = FlatEx::<f64>::parse(text)
             .map_err(|e| format!("param 'expr': cannot parse {text:?}: {e}"))?;
         let names: Vec<String> = ex.var_names().to_vec();

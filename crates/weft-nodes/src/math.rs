@@ -77,7 +77,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             .param(ParamSpec::float("factor", 1.0).doc("multiplier")),
         |_| {
             Ok(Kernel::from_fn(|cx| {
-                let v = cx.f64_input("x")? * cx.params().f64("factor");
+                let v = cx.f64_input("x")? * cx.params().f64("factor")?;
                 cx.set("out", v);
                 Ok(())
             }))
@@ -104,7 +104,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                         message: "is NaN".into(),
                     });
                 }
-                let below = x.abs() < cx.params().f64("tolerance");
+                let below = x.abs() < cx.params().f64("tolerance")?;
                 cx.set("out", below);
                 Ok(())
             }))

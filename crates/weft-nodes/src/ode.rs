@@ -16,24 +16,43 @@ pub fn oscillator_exact(x0: f64, v0: f64, omega: f64, t: f64) -> f64 {
     x0 * (omega * t).cos() + v0 / omega * (omega * t).sin()
 }
 
-fn substep(cx: &EvalCx<'_>) -> (usize, f64) {
-    let n = cx.params().i64("substeps").max(1) as usize;
-    (n, 1.0 / (cx.context().fps * n as f64))
+/// Every this many substeps an integrator asks whether to stop (a frame of 10⁹ substeps is
+/// a valid request that must still answer Ctrl-C).
+const CHECK_EVERY: usize = 1 << 16;
+
+fn stop_check(cx: &EvalCx<'_>, k: usize) -> Result<(), NodeError> {
+    if k % CHECK_EVERY == CHECK_EVERY - 1 && cx.interrupt().is_set() {
+        return Err(NodeError::Interrupted(format!(
+            "{} at substep {}",
+            cx.interrupt().reason(),
+            k + 1
+        )));
+    }
+    Ok(())
+}
+
+fn substep(cx: &EvalCx<'_>) -> Result<(usize, f64), NodeError> {
+    let n = cx.params().usize("substeps")?.max(1);
+    Ok((n, 1.0 / (cx.context().fps * n as f64)))
 }
 
 struct Decay;
 
 impl Step for Decay {
     fn init(&mut self, cx: &mut EvalCx<'_>) -> Result<Value, NodeError> {
-        Ok(Value::from(cx.params().f64("y0")))
+        Ok(Value::from(cx.params().f64("y0")?))
     }
     fn step(&mut self, state: &Value, cx: &mut EvalCx<'_>) -> Result<Value, NodeError> {
-        let mut y = *state.get::<f64>().expect("decay state is f64");
-        let k = cx.params().f64("rate");
-        let (n, h) = substep(cx);
+        let mut y = *state
+            .get::<f64>()
+            .ok_or_else(|| NodeError::Failed("the state is not a number".into()))?;
+        let k = cx.params().f64("rate")?;
+        let (n, h) = substep(cx)?;
         let f = |y: f64| -k * y;
-        for _ in 0..n {
-            y = match cx.params().str("method") {
+        let method = cx.params().str("method")?.to_string();
+        for i in 0..n {
+            stop_check(cx, i)?;
+            y = match method.as_str() {
                 "explicit_euler" => y + h * f(y),
                 "implicit_euler" => y / (1.0 + h * k),
                 "exact" => y * (-k * h).exp(),
@@ -58,6 +77,15 @@ impl Step for Decay {
         cx.set("y", state.clone());
         Ok(())
     }
+    fn save_state(&self, state: &Value, _: &weft_graph::Registry) -> Option<Vec<u8>> {
+        state.get::<f64>().map(|y| y.to_le_bytes().to_vec())
+    }
+    fn load_state(&mut self, b: &[u8], _: &Value, _: &mut EvalCx<'_>) -> Result<Value, NodeError> {
+        let b: [u8; 8] = b.try_into().map_err(|_| {
+            NodeError::Failed(format!("checkpoint of {} bytes, expected 8", b.len()))
+        })?;
+        Ok(Value::from(f64::from_le_bytes(b)))
+    }
 }
 
 struct Oscillator;
@@ -65,24 +93,25 @@ struct Oscillator;
 impl Step for Oscillator {
     fn init(&mut self, cx: &mut EvalCx<'_>) -> Result<Value, NodeError> {
         Ok(Value::from([
-            cx.params().f64("x0"),
-            cx.params().f64("v0"),
+            cx.params().f64("x0")?,
+            cx.params().f64("v0")?,
             0.0,
         ]))
     }
     fn step(&mut self, state: &Value, cx: &mut EvalCx<'_>) -> Result<Value, NodeError> {
         let s = *state
             .get::<[f64; 3]>()
-            .expect("oscillator state is [x, v, 0]");
+            .ok_or_else(|| NodeError::Failed("the state is not [x, v, 0]".into()))?;
         let (mut x, mut v) = (s[0], s[1]);
-        let w = cx.params().f64("omega");
-        let c = 2.0 * cx.params().f64("zeta") * w;
+        let w = cx.params().f64("omega")?;
+        let c = 2.0 * cx.params().f64("zeta")? * w;
         // The drive is sampled at the frame being stepped to and held over its substeps.
         let a = cx.f64_input("drive")?;
-        let (n, h) = substep(cx);
+        let (n, h) = substep(cx)?;
         let acc = |x: f64, v: f64| -w * w * x - c * v + a;
-        let method = cx.params().str("method").to_string();
-        for _ in 0..n {
+        let method = cx.params().str("method")?.to_string();
+        for i in 0..n {
+            stop_check(cx, i)?;
             match method.as_str() {
                 "symplectic_euler" => {
                     v += h * acc(x, v);
@@ -112,12 +141,28 @@ impl Step for Oscillator {
         Ok(Value::from([x, v, 0.0]))
     }
     fn outputs(&mut self, state: &Value, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
-        let s = *state.get::<[f64; 3]>().expect("oscillator state");
-        let w = cx.params().f64("omega");
+        let s = *state
+            .get::<[f64; 3]>()
+            .ok_or_else(|| NodeError::Failed("the state is not [x, v, 0]".into()))?;
+        let w = cx.params().f64("omega")?;
         cx.set("x", s[0]);
         cx.set("v", s[1]);
         cx.set("energy", 0.5 * s[1] * s[1] + 0.5 * w * w * s[0] * s[0]);
         Ok(())
+    }
+    fn save_state(&self, state: &Value, _: &weft_graph::Registry) -> Option<Vec<u8>> {
+        let mut w = weft_graph::codec::Writer::new();
+        w.f64s(state.get::<[f64; 3]>()?);
+        Some(w.finish())
+    }
+    fn load_state(&mut self, b: &[u8], _: &Value, _: &mut EvalCx<'_>) -> Result<Value, NodeError> {
+        let mut r = weft_graph::codec::Reader::new(b);
+        match (r.f64s(), r.end()) {
+            (Ok(v), Ok(())) if v.len() == 3 => Ok(Value::from([v[0], v[1], v[2]])),
+            _ => Err(NodeError::Failed(
+                "checkpoint: not an oscillator state".into(),
+            )),
+        }
     }
 }
 

@@ -9,7 +9,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             .param(ParamSpec::float("value", 0.0).doc("the number")),
         |_| {
             Ok(Kernel::from_fn(|cx| {
-                let v = cx.params().f64("value");
+                let v = cx.params().f64("value")?;
                 cx.set("out", v);
                 Ok(())
             }))
@@ -21,7 +21,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             .param(ParamSpec::int("value", 0).doc("the integer")),
         |_| {
             Ok(Kernel::from_fn(|cx| {
-                let v = cx.params().i64("value");
+                let v = cx.params().i64("value")?;
                 cx.set("out", v);
                 Ok(())
             }))
@@ -33,7 +33,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             .param(ParamSpec::bool("value", false).doc("the boolean")),
         |_| {
             Ok(Kernel::from_fn(|cx| {
-                let v = cx.params().bool("value");
+                let v = cx.params().bool("value")?;
                 cx.set("out", v);
                 Ok(())
             }))
@@ -45,7 +45,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             .param(ParamSpec::vec3("value", [0.0; 3]).doc("the vector")),
         |_| {
             Ok(Kernel::from_fn(|cx| {
-                let v = cx.params().vec3("value");
+                let v = cx.params().vec3("value")?;
                 cx.set("out", v);
                 Ok(())
             }))
@@ -57,7 +57,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             .param(ParamSpec::string("value", "").doc("the text")),
         |_| {
             Ok(Kernel::from_fn(|cx| {
-                let v = Value::from(cx.params().str("value").to_string());
+                let v = Value::from(cx.params().str("value")?.to_string());
                 cx.set("out", v);
                 Ok(())
             }))

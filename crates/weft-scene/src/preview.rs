@@ -639,6 +639,29 @@ fn draw_segment(target: &mut Target, view: &View, a: V3, b: V3, color: [u8; 3], 
 /// `width * height * 3`, or a path without a file name; [`PreviewError::Io`] and
 /// [`PreviewError::Png`] when writing fails (the temporary file is then removed).
 pub fn write_png(image: &Image, path: &Path) -> Result<(), PreviewError> {
+    if path.file_name().is_none() {
+        return Err(PreviewError::Invalid {
+            path: path.to_owned(),
+            message: "the path does not name a file".into(),
+        });
+    }
+    let tmp = path.with_extension("png.tmp");
+    let result = write_png_to(image, path, &tmp).and_then(|()| {
+        std::fs::rename(&tmp, path).map_err(|source| PreviewError::Io {
+            path: path.to_owned(),
+            source,
+        })
+    });
+    if result.is_err() {
+        // Best effort: the temporary file may not exist.
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// Encodes `image` as an 8-bit RGB PNG into `out` (for callers with their own atomic
+/// writer); `path` only labels errors.
+pub fn encode_png(image: &Image, path: &Path, out: &mut dyn Write) -> Result<(), PreviewError> {
     let invalid = |message: String| PreviewError::Invalid {
         path: path.to_owned(),
         message,
@@ -658,21 +681,16 @@ pub fn write_png(image: &Image, path: &Path) -> Result<(), PreviewError> {
             image.height
         )));
     }
-    if path.file_name().is_none() {
-        return Err(invalid("the path does not name a file".into()));
-    }
-    let tmp = path.with_extension("png.tmp");
-    let result = write_png_to(image, path, &tmp).and_then(|()| {
-        std::fs::rename(&tmp, path).map_err(|source| PreviewError::Io {
-            path: path.to_owned(),
-            source,
-        })
-    });
-    if result.is_err() {
-        // Best effort: the temporary file may not exist.
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
+    let png_err = |source| PreviewError::Png {
+        path: path.to_owned(),
+        source,
+    };
+    let mut encoder = png::Encoder::new(out, image.width, image.height);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    let mut writer = encoder.write_header().map_err(png_err)?;
+    writer.write_image_data(&image.rgb).map_err(png_err)?;
+    writer.finish().map_err(png_err)
 }
 
 fn write_png_to(image: &Image, path: &Path, tmp: &Path) -> Result<(), PreviewError> {
@@ -680,18 +698,9 @@ fn write_png_to(image: &Image, path: &Path, tmp: &Path) -> Result<(), PreviewErr
         path: tmp.to_owned(),
         source,
     };
-    let png_err = |source| PreviewError::Png {
-        path: path.to_owned(),
-        source,
-    };
     let file = File::create(tmp).map_err(io_err)?;
     let mut out = BufWriter::new(file);
-    let mut encoder = png::Encoder::new(&mut out, image.width, image.height);
-    encoder.set_color(png::ColorType::Rgb);
-    encoder.set_depth(png::BitDepth::Eight);
-    let mut writer = encoder.write_header().map_err(png_err)?;
-    writer.write_image_data(&image.rgb).map_err(png_err)?;
-    writer.finish().map_err(png_err)?;
+    encode_png(image, path, &mut out)?;
     out.flush().map_err(io_err)?;
     let file = out.into_inner().map_err(|e| io_err(e.into_error()))?;
     file.sync_all().map_err(io_err)

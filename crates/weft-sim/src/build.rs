@@ -193,6 +193,37 @@ impl Compiled {
 /// Compiles a scene: every cloth and hair element gets a range of global vertices; each
 /// Behavior adds its terms; elements without mass, and SECs no Behavior reads, are reported.
 pub fn compile(scene: &[SceneElement], tree: &BehaviorTree) -> Result<Compiled, SimError> {
+    compile_within(scene, tree, None)
+}
+
+/// Bytes a simulated vertex costs in the compiled system at most: positions, velocities,
+/// masses, its share of the energy terms' stencils and rest data (a cloth vertex is in six
+/// triangles, each with a membrane, a bending and a midedge term).
+pub const SYSTEM_BYTES_PER_VERTEX: u64 = 2048;
+
+/// [`compile`], refusing (before building the system) a scene whose system, or whose fluid
+/// grid, would take more than `max_bytes`; `None`: no limit.
+pub fn compile_within(
+    scene: &[SceneElement],
+    tree: &BehaviorTree,
+    max_bytes: Option<u64>,
+) -> Result<Compiled, SimError> {
+    if let Some(limit) = max_bytes {
+        let n: u64 = scene
+            .iter()
+            .filter(|e| matches!(e.kind, ElementKind::Cloth | ElementKind::Hair))
+            .map(|e| e.vertex_count() as u64)
+            .sum();
+        let need = n.saturating_mul(SYSTEM_BYTES_PER_VERTEX);
+        if need > limit {
+            const GIB: f64 = (1u64 << 30) as f64;
+            return Err(SimError::TooLarge(format!(
+                "the scene's {n} simulated vertices need about {:.2} GiB, more than the {:.2} GiB available; use coarser meshes, fewer strands or fewer segments",
+                need as f64 / GIB,
+                limit as f64 / GIB
+            )));
+        }
+    }
     let mut names = BTreeSet::new();
     let mut ranges = Vec::with_capacity(scene.len());
     let mut x = Vec::new();
@@ -282,7 +313,7 @@ pub fn compile(scene: &[SceneElement], tree: &BehaviorTree) -> Result<Compiled, 
             message,
         });
     }
-    let fluid = crate::fluid::fluid_spec(scene, &b.x, |e, sec| {
+    let fluid = crate::fluid::fluid_spec(scene, &b.x, max_bytes, |e, sec| {
         if let Some(r) = b.read.get_mut(e) {
             r.insert(sec);
         }

@@ -29,7 +29,8 @@ use std::time::Instant;
 use weft_fluid::advect::advect_velocity;
 use weft_fluid::obstacle::carve;
 use weft_fluid::raster::{
-    RasterStats, Sample, add_impulse, rasterize, segment_lattice, triangle_lattice,
+    RasterStats, Sample, add_impulse, rasterize, segment_lattice, segment_samples,
+    triangle_lattice, triangle_samples,
 };
 use weft_fluid::{
     Diffusion, DragParams, FluidProperties, MacGrid, PressureSolve, PressureStats, Projection,
@@ -105,6 +106,9 @@ pub struct CoupledSettings {
     /// ν = μ/ρ from `fluid`. Off by default: for water and air at hair and cloth scales it
     /// changes a step by hν/Δx² ≈ 10⁻⁷ of the velocity's curvature.
     pub viscosity: bool,
+    /// The most the drag samples may take [bytes] ([`CoupledError::TooManySamples`]);
+    /// `None`: no limit.
+    pub max_bytes: Option<u64>,
 }
 
 impl Default for CoupledSettings {
@@ -120,6 +124,7 @@ impl Default for CoupledSettings {
             gravity: [0.0; 3],
             max_solid_fraction: 0.9,
             viscosity: false,
+            max_bytes: None,
         }
     }
 }
@@ -202,6 +207,43 @@ pub enum CoupledError {
     /// A drag element's parameters are out of range.
     #[error(transparent)]
     Parameters(#[from] weft_fluid::FluidError),
+    /// The drag elements would make more samples than memory holds (elements much larger
+    /// than the cells); nothing was allocated.
+    ///
+    /// A 4 km flag in 2 cm cells.
+    #[error(
+        "the drag elements make {samples} samples at this cell size ({dx} m), needing about {need_gib:.1} GiB, more than the {limit_gib:.1} GiB available; use larger cells (the fluid domain's cell_size) or smaller elements"
+    )]
+    TooManySamples {
+        /// Samples the lattices would make.
+        samples: u64,
+        /// Cell size [m].
+        dx: f64,
+        /// Estimated need [GiB].
+        need_gib: f64,
+        /// The limit [GiB].
+        limit_gib: f64,
+    },
+}
+
+/// Bytes a drag sample costs over a coupling iteration: its point, its sample, its lift and
+/// the rasterizer's copy.
+const SAMPLE_BYTES: u64 = 256;
+
+impl CoupledError {
+    /// True when a stop check ([`CoupledStepper::set_stop`]) ended the step, not a failure.
+    pub fn is_interrupted(&self) -> bool {
+        matches!(
+            self,
+            CoupledError::Solid {
+                source: StepError::Interrupted { .. },
+                ..
+            } | CoupledError::Pressure {
+                source: weft_fluid::ProjectionError::Interrupted { .. },
+                ..
+            } | CoupledError::Viscosity(weft_fluid::ProjectionError::Interrupted { .. })
+        )
+    }
 }
 
 /// A sample of a drag element: which vertices it interpolates, with what weights, its
@@ -447,9 +489,26 @@ pub struct CoupledStepper {
     /// The pressure gradient on the faces (sampled like a velocity).
     gradient: Option<MacGrid>,
     samples: Vec<Sample>,
+    stop: Option<weft_solid::StopCheck>,
 }
 
 impl CoupledStepper {
+    /// Sets (or clears) the check the solid and pressure solvers ask once per iteration;
+    /// when it answers true the stage fails with an error for which
+    /// [`CoupledError::is_interrupted`] holds.
+    pub fn set_stop(&mut self, stop: Option<weft_solid::StopCheck>) {
+        if let Some(i) = &mut self.integrator {
+            i.set_stop(stop.clone());
+        }
+        if let Some(p) = &mut self.projection {
+            p.set_stop(stop.clone());
+        }
+        if let Some(d) = &mut self.diffusion {
+            d.set_stop(stop.clone());
+        }
+        self.stop = stop;
+    }
+
     /// Builds the solver structures for a solid system and a fluid domain.
     pub fn new(sys: &SolidSystem, grid: &MacGrid) -> Result<Self, StepError> {
         Ok(CoupledStepper {
@@ -460,6 +519,7 @@ impl CoupledStepper {
             obstacles: Vec::new(),
             gradient: None,
             samples: Vec::new(),
+            stop: None,
         })
     }
 
@@ -490,7 +550,11 @@ impl CoupledStepper {
         if settings.viscosity {
             let diffusion = match &mut self.diffusion {
                 Some(d) if d.fits(out) => d,
-                slot => slot.insert(Diffusion::new(out)),
+                slot => {
+                    let mut d = Diffusion::new(out);
+                    d.set_stop(self.stop.clone());
+                    slot.insert(d)
+                }
             };
             let nu = settings.fluid.viscosity / settings.fluid.density;
             let s = diffusion
@@ -530,9 +594,24 @@ impl CoupledStepper {
         seen: &MacGrid,
         settings: &CoupledSettings,
         out: &mut Exchange,
-    ) {
+    ) -> Result<(), CoupledError> {
         let dx = seen.domain.dx;
         let mu = settings.fluid.viscosity;
+        if let Some(limit) = settings.max_bytes {
+            let samples = sample_count(elements, x0, dx);
+            let need = samples.saturating_mul(SAMPLE_BYTES);
+            // Only the growth counts: last step's samples are reused in place.
+            let have = (out.points.capacity() as u64).saturating_mul(SAMPLE_BYTES);
+            if need > limit.saturating_add(have) {
+                const GIB: f64 = (1u64 << 30) as f64;
+                return Err(CoupledError::TooManySamples {
+                    samples,
+                    dx,
+                    need_gib: need as f64 / GIB,
+                    limit_gib: limit as f64 / GIB,
+                });
+            }
+        }
         sample_points(elements, x0, dx, &mut out.points);
         let grad = self
             .gradient
@@ -600,6 +679,7 @@ impl CoupledStepper {
                 d.flow[a] = if m > 0.0 { d.flow[a] / m } else { 0.0 };
             }
         }
+        Ok(())
     }
 
     /// **Solid solve** (stage C): one implicit step of `h` from `start` with the exchange's
@@ -626,7 +706,11 @@ impl CoupledStepper {
         let fail = |source| CoupledError::Solid { iteration, source };
         let integrator = match &mut self.integrator {
             Some(i) => i,
-            None => self.integrator.insert(Integrator::new(sys).map_err(fail)?),
+            None => {
+                let mut i = Integrator::new_within(sys, settings.max_bytes).map_err(fail)?;
+                i.set_stop(self.stop.clone());
+                self.integrator.insert(i)
+            }
         };
         integrator
             .step_from(sys, out, guess, targets, h, &settings.solid)
@@ -673,7 +757,11 @@ impl CoupledStepper {
     ) -> Result<PressureStats, CoupledError> {
         let projection = match &mut self.projection {
             Some(p) if p.unknowns() == fluid.domain.cell_count() => p,
-            _ => self.projection.insert(Projection::new(fluid)),
+            _ => {
+                let mut p = Projection::new(fluid);
+                p.set_stop(self.stop.clone());
+                self.projection.insert(p)
+            }
         };
         projection
             .project(fluid, settings.fluid.density, h, &settings.pressure)
@@ -733,7 +821,7 @@ impl CoupledStepper {
                 &fluid,
                 settings,
                 &mut exchange,
-            );
+            )?;
             stats.seconds[1] += t.elapsed().as_secs_f64();
             let t = Instant::now();
             let guess = (it > 0).then_some(&solid.x[..]);
@@ -795,6 +883,25 @@ impl CoupledStepper {
 
 /// Samples every element at positions `x` on the lattices rasterization uses, keeping each
 /// sample's vertex weights.
+/// How many points [`sample_points`] makes, without making them (saturating).
+fn sample_count(elements: &[DragElement], x: &[Vector3<f64>], dx: f64) -> u64 {
+    let mut total = 0u64;
+    for e in elements {
+        let n = match e.shape {
+            DragShape::Segment([a, b], _) => {
+                segment_samples((x[b as usize] - x[a as usize]).norm(), dx)
+            }
+            DragShape::Triangle([a, b, c], _) => {
+                let (pa, pb, pc) = (x[a as usize], x[b as usize], x[c as usize]);
+                let longest = (pb - pa).norm().max((pc - pb).norm()).max((pa - pc).norm());
+                triangle_samples(longest, dx)
+            }
+        };
+        total = total.saturating_add(n as u64);
+    }
+    total
+}
+
 fn sample_points(elements: &[DragElement], x: &[Vector3<f64>], dx: f64, out: &mut Vec<Point>) {
     out.clear();
     for (ei, e) in elements.iter().enumerate() {

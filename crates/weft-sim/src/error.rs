@@ -53,6 +53,25 @@ pub enum SimError {
         /// The solver's error.
         message: String,
     },
+    /// A stop check (Ctrl-C, a time limit) ended the frame; the previous state stands.
+    ///
+    /// `stopped at frame 3, substep 2 of 4 (Newton iteration 5)`
+    #[error("stopped at frame {frame}, substep {substep} of {substeps} ({detail})")]
+    Interrupted {
+        /// Frame being computed.
+        frame: i64,
+        /// Substep (1-based).
+        substep: usize,
+        /// Substeps per frame.
+        substeps: usize,
+        /// Where inside the substep.
+        detail: String,
+    },
+    /// The scene would not fit in the memory allowed; nothing large was allocated.
+    ///
+    /// `the scene's 40000000 simulated vertices need about 76.29 GiB, more than …`
+    #[error("{0}")]
+    TooLarge(String),
     /// The scene's structure changed between frames (vertex counts, elements).
     ///
     /// `element 'shirt' has 1024 vertices at frame 5 but had 1089 at the start`

@@ -86,6 +86,7 @@ fn side(s: DomainSide, flow: [f64; 3]) -> Boundary {
 pub(crate) fn fluid_spec(
     scene: &[SceneElement],
     x: &[Vector3<f64>],
+    max_bytes: Option<u64>,
     mut read: impl FnMut(usize, &'static str),
 ) -> Result<Option<FluidSpec>, SimError> {
     let mut domains = scene
@@ -160,7 +161,7 @@ pub(crate) fn fluid_spec(
         lo: sec.lo.map(|s| side(s, sec.flow)),
         hi: sec.hi.map(|s| side(s, sec.flow)),
     };
-    let domain = Domain::new(lo, size, sec.cell_size, boundaries, None).map_err(|err| {
+    let domain = Domain::new(lo, size, sec.cell_size, boundaries, max_bytes).map_err(|err| {
         let field = match err {
             FluidError::CellSize(_) | FluidError::TooLarge { .. } => "fluid_domain.cell_size",
             FluidError::Size(_) => "fluid_domain.bounds",

@@ -23,7 +23,7 @@ pub use behavior::{
     AttachmentBehavior, Behavior, BehaviorTree, Damping, DiscreteShellMaterial, FluidDrag, Gravity,
     RodMaterial,
 };
-pub use build::{Compiled, Pin, SystemBuilder, compile};
+pub use build::{Compiled, Pin, SYSTEM_BYTES_PER_VERTEX, SystemBuilder, compile, compile_within};
 pub use coupled::{
     CoupledError, CoupledSettings, CoupledStats, CoupledStepper, Coupling, DragElement, DragShape,
     Exchange, Predicted, Relaxation, RelaxationMethod, fluid_change, relax, velocity_change,

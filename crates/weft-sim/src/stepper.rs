@@ -23,6 +23,8 @@ pub struct StepperSettings {
     pub solver: Settings,
     /// Levels of step halving allowed when a substep fails.
     pub max_retries: usize,
+    /// The most the integrator's matrix and factor may take [bytes]; `None`: no limit.
+    pub max_bytes: Option<u64>,
 }
 
 impl Default for StepperSettings {
@@ -31,6 +33,7 @@ impl Default for StepperSettings {
             substeps: 4,
             solver: Settings::default(),
             max_retries: 4,
+            max_bytes: None,
         }
     }
 }
@@ -82,13 +85,16 @@ pub struct SolidStepper {
 impl SolidStepper {
     /// A stepper for `compiled`.
     pub fn new(compiled: Arc<Compiled>, settings: StepperSettings) -> Result<Self, SimError> {
-        let integrator = Integrator::new(&compiled.system).map_err(|e| SimError::StepFailed {
-            frame: 0,
-            substep: 0,
-            substeps: settings.substeps,
-            retries: 0,
-            message: e.to_string(),
-        })?;
+        let integrator =
+            Integrator::new_within(&compiled.system, settings.max_bytes).map_err(|e| {
+                SimError::StepFailed {
+                    frame: 0,
+                    substep: 0,
+                    substeps: settings.substeps,
+                    retries: 0,
+                    message: e.to_string(),
+                }
+            })?;
         let targets = compiled.state.x.clone();
         Ok(SolidStepper {
             system: compiled.system.clone(),
@@ -97,6 +103,12 @@ impl SolidStepper {
             settings,
             targets,
         })
+    }
+
+    /// Sets (or clears) the check the integrator asks once per Newton iteration; when it
+    /// answers true, [`Self::advance`] fails with [`SimError::Interrupted`].
+    pub fn set_stop(&mut self, stop: Option<weft_solid::StopCheck>) {
+        self.integrator.set_stop(stop);
     }
 
     /// The compiled scene.
@@ -150,6 +162,8 @@ impl SolidStepper {
                 Ok(())
             }
             Err(StepError::System(e)) => Err(StepError::System(e)),
+            // A stop is not a failure: retrying with smaller steps would only delay it.
+            Err(e @ StepError::Interrupted { .. }) => Err(e),
             Err(_) if depth < self.settings.max_retries => {
                 stats.retries += 1;
                 let mid = 0.5 * (s0 + s1);
@@ -180,12 +194,20 @@ impl SolidStepper {
             let (s0, s1) = (k as f64 / n as f64, (k + 1) as f64 / n as f64);
             let retries_before = stats.retries;
             self.interval(&mut st, &prev.transforms, &to, s0, s1, h, 0, &mut stats)
-                .map_err(|e| SimError::StepFailed {
-                    frame,
-                    substep: k + 1,
-                    substeps: n,
-                    retries: stats.retries - retries_before,
-                    message: e.to_string(),
+                .map_err(|e| match e {
+                    StepError::Interrupted { .. } => SimError::Interrupted {
+                        frame,
+                        substep: k + 1,
+                        substeps: n,
+                        detail: e.to_string(),
+                    },
+                    e => SimError::StepFailed {
+                        frame,
+                        substep: k + 1,
+                        substeps: n,
+                        retries: stats.retries - retries_before,
+                        message: e.to_string(),
+                    },
                 })?;
         }
         stats.seconds = t0.elapsed().as_secs_f64();

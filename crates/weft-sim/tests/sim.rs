@@ -246,6 +246,7 @@ fn a_step_that_cannot_converge_is_retried_then_reported_with_frame_and_substep()
     let settings = StepperSettings {
         substeps: 2,
         max_retries: 2,
+        max_bytes: None,
         solver: Settings {
             tolerance: 0.0,
             max_iterations: 2,

@@ -135,7 +135,30 @@ pub enum StepError {
     /// The sparse Cholesky factorization failed (the matrix was not positive definite).
     #[error("sparse Cholesky failed: {0}")]
     Factorization(String),
+    /// The system's matrix or its factor would not fit in the memory allowed
+    /// ([`Integrator::new_within`]); nothing large was allocated.
+    #[error(
+        "{what} needs about {need_gib:.2} GiB, more than the {limit_gib:.2} GiB available; use fewer vertices (a coarser mesh, fewer strands or segments)"
+    )]
+    TooLarge {
+        /// What would not fit.
+        what: &'static str,
+        /// Estimated need [GiB].
+        need_gib: f64,
+        /// The limit [GiB].
+        limit_gib: f64,
+    },
+    /// The stop check ([`Integrator::set_stop`]) asked the step to end.
+    #[error("stopped at Newton iteration {iteration}")]
+    Interrupted {
+        /// Newton iteration at which the step stopped (0-based).
+        iteration: usize,
+    },
 }
+
+/// Asked once per Newton iteration (and per explicit step): true when the step should end
+/// with [`StepError::Interrupted`] (Ctrl-C, a time limit, a host's cancel).
+pub type StopCheck = std::sync::Arc<dyn Fn() -> bool + Send + Sync>;
 
 const NONE: u32 = u32::MAX;
 
@@ -177,11 +200,51 @@ pub struct Integrator {
     /// Σ |gradient entries| of every term at the last assembly: with the size of the
     /// positions it bounds the floating-point resolution of the objective.
     force_scale: f64,
+    stop: Option<StopCheck>,
 }
 
 impl Integrator {
+    /// Sets (or clears) the check asked once per Newton iteration; when it answers true the
+    /// step ends with [`StepError::Interrupted`] and the state is left as it was.
+    pub fn set_stop(&mut self, stop: Option<StopCheck>) {
+        self.stop = stop;
+    }
+
+    fn should_stop(&self) -> bool {
+        self.stop.as_ref().is_some_and(|s| s())
+    }
+
     /// Builds the pattern and symbolic factorization for `sys`.
     pub fn new(sys: &SolidSystem) -> Result<Self, StepError> {
+        Self::new_within(sys, None)
+    }
+
+    /// [`Self::new`], refusing (with [`StepError::TooLarge`], before allocating them) a
+    /// pattern or a Cholesky factor larger than `max_bytes`: the pattern is bounded by the
+    /// sum over elements of (stencil size)², the factor's size is exact once the symbolic
+    /// analysis has run.
+    pub fn new_within(sys: &SolidSystem, max_bytes: Option<u64>) -> Result<Self, StepError> {
+        const GIB: f64 = (1u64 << 30) as f64;
+        let refuse = |what, need: u64, limit: u64| StepError::TooLarge {
+            what,
+            need_gib: need as f64 / GIB,
+            limit_gib: limit as f64 / GIB,
+        };
+        if let Some(limit) = max_bytes {
+            let mut pairs = 0u64;
+            sys.elements.for_each(|e| {
+                let k = e.vertices().len() as u64;
+                pairs = pairs.saturating_add(k * k);
+            });
+            // Per stencil pair at most: a neighbour entry and a slot (u32 each), and a 3×3
+            // block of row indices and values (8 bytes each); plus per vertex its buffers.
+            let need = pairs
+                .saturating_mul(8 + 9 * 16)
+                .saturating_add((sys.mass.len() as u64).saturating_mul(256));
+            if need > limit {
+                return Err(refuse("the system matrix", need, limit));
+            }
+        }
         let n = sys.mass.len();
         let mut free_of = vec![NONE; n];
         let mut n_free = 0usize;
@@ -295,6 +358,15 @@ impl Integrator {
         let scratch = symbolic
             .factorize_numeric_llt_scratch::<f64>(par, Default::default())
             .or(symbolic.solve_in_place_scratch::<f64>(1, par));
+        if let Some(limit) = max_bytes {
+            let need = (symbolic.len_val() as u64)
+                .saturating_mul(8)
+                .saturating_add(scratch.size_bytes() as u64)
+                .saturating_add((row_idx.len() as u64).saturating_mul(16));
+            if need > limit {
+                return Err(refuse("the Cholesky factor", need, limit));
+            }
+        }
         // Greedy colouring in element order, on free vertices only (pinned ones are never
         // written). 128 colours cover any stencil this crate builds; an element that finds
         // none free goes to a final serial group.
@@ -346,6 +418,7 @@ impl Integrator {
             x_trial: vec![Vector3::zeros(); n],
             local: Local::default(),
             force_scale: 0.0,
+            stop: None,
             per_element: RefCell::new(vec![0.0; slot_offset.len()]),
             slot_offset,
             colors,
@@ -651,6 +724,9 @@ impl Integrator {
         };
         let mut g0 = 0.0f64;
         for it in 0..max_it {
+            if self.should_stop() {
+                return Err(StepError::Interrupted { iteration: it });
+            }
             let t = Instant::now();
             self.assemble(sys, x, x0, mode);
             stats.assembly_seconds += t.elapsed().as_secs_f64();
@@ -746,6 +822,9 @@ impl Integrator {
         target: &dyn Fn(usize) -> Vector3<f64>,
         h: f64,
     ) -> Result<StepStats, StepError> {
+        if self.should_stop() {
+            return Err(StepError::Interrupted { iteration: 0 });
+        }
         // Forces at x⁰: f = −∇E + m g − c m v.
         let mut force = vec![Vector3::zeros(); self.n];
         let local = &mut self.local;

@@ -17,5 +17,5 @@ pub mod spd;
 pub mod system;
 pub mod verify;
 
-pub use integrator::{Integrator, Method, Settings, StepError, StepStats};
+pub use integrator::{Integrator, Method, Settings, StepError, StepStats, StopCheck};
 pub use system::{Elements, SolidSystem, State, SystemError, VertexDrag};

@@ -64,7 +64,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         |_| {
             Ok(Kernel::from_fn(|cx| {
                 let g = Gravity {
-                    acceleration: cx.params().vec3("acceleration"),
+                    acceleration: cx.params().vec3("acceleration")?,
                 };
                 cx.set("behavior", Value::new(BehaviorValue(Arc::new(g))));
                 Ok(())
@@ -86,7 +86,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         |_| {
             Ok(Kernel::from_fn(|cx| {
                 let d = Damping {
-                    coefficient: cx.params().f64("coefficient"),
+                    coefficient: cx.params().f64("coefficient")?,
                 };
                 cx.set("behavior", Value::new(BehaviorValue(Arc::new(d))));
                 Ok(())

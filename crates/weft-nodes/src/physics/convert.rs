@@ -10,7 +10,7 @@ use weft_scene::{
 };
 
 fn check_name(p: &Params) -> Result<(), String> {
-    let n = p.str("name");
+    let n = p.str("name")?;
     // Names become file names in outputs: no separators or parent references.
     if n.is_empty()
         || n.chars().any(|c| c.is_control() || c == '/' || c == '\\')
@@ -64,7 +64,7 @@ fn with_rest(cx: &mut EvalCx<'_>, mut e: SceneElement) -> Result<SceneElement, N
 
 /// Vertex indices from a list parameter of whole numbers.
 fn indices(p: &Params, name: &str) -> Result<Vec<u32>, String> {
-    p.floats(name)
+    p.floats(name)?
         .iter()
         .map(|&x| {
             if x >= 0.0 && x.fract() == 0.0 && x < u32::MAX as f64 {
@@ -97,7 +97,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                         message: "has no triangles".into(),
                     });
                 }
-                let name = cx.params().str("name").to_string();
+                let name = cx.params().str("name")?.to_string();
                 let e = with_rest(cx, SceneElement::new(&name, ElementKind::Cloth, Geometry::Mesh(m)))?;
                 cx.set("element", Value::new(e));
                 Ok(())
@@ -124,7 +124,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                         message: "has no curves".into(),
                     });
                 }
-                let name = cx.params().str("name").to_string();
+                let name = cx.params().str("name")?.to_string();
                 let e = with_rest(cx, SceneElement::new(&name, ElementKind::Hair, Geometry::Curves(c)))?;
                 cx.set("element", Value::new(e));
                 Ok(())
@@ -151,7 +151,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                         *p = [q.x, q.y, q.z];
                     }
                 }
-                let mut e = SceneElement::new(cx.params().str("name"), ElementKind::Collider, Geometry::Mesh(m));
+                let mut e = SceneElement::new(cx.params().str("name")?, ElementKind::Collider, Geometry::Mesh(m));
                 e.transform = t;
                 cx.set("element", Value::new(e));
                 Ok(())
@@ -174,34 +174,41 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
     r.register(spec, |p| {
         check_name(p)?;
         for axis in ["x", "y", "z"] {
-            let (lo, hi) = (p.str(&format!("{axis}_min")), p.str(&format!("{axis}_max")));
+            let (lo, hi) = (p.str(&format!("{axis}_min"))?, p.str(&format!("{axis}_max"))?);
             if (lo == "periodic") != (hi == "periodic") {
                 return Err(format!("param '{axis}_min'/'{axis}_max': a periodic axis must be periodic on both sides (got {lo} and {hi})"));
             }
         }
-        if !p.bool("auto_bounds") {
-            let (lo, hi) = (p.vec3("min"), p.vec3("max"));
+        if !p.bool("auto_bounds")? {
+            let (lo, hi) = (p.vec3("min")?, p.vec3("max")?);
             if (0..3).any(|a| hi[a] <= lo[a]) {
                 return Err(format!("param 'max': must exceed 'min' on every axis (min {lo:?}, max {hi:?})"));
             }
         }
         Ok(Kernel::from_fn(|cx| {
             let p = cx.params();
-            let side = |name: &str| match p.str(name) {
-                "open" => DomainSide::Open,
-                "inflow" => DomainSide::Inflow,
-                "periodic" => DomainSide::Periodic,
-                _ => DomainSide::Wall,
+            let side = |name: &str| {
+                Ok::<_, weft_graph::ParamError>(match p.str(name)? {
+                    "open" => DomainSide::Open,
+                    "inflow" => DomainSide::Inflow,
+                    "periodic" => DomainSide::Periodic,
+                    _ => DomainSide::Wall,
+                })
+            };
+            let bounds = if p.bool("auto_bounds")? {
+                None
+            } else {
+                Some((p.vec3("min")?, p.vec3("max")?))
             };
             let sec = FluidDomain {
-                bounds: (!p.bool("auto_bounds")).then(|| (p.vec3("min"), p.vec3("max"))),
-                padding: p.f64("padding"),
-                cell_size: p.f64("cell_size"),
-                lo: [side("x_min"), side("y_min"), side("z_min")],
-                hi: [side("x_max"), side("y_max"), side("z_max")],
-                flow: p.vec3("flow"),
+                bounds,
+                padding: p.f64("padding")?,
+                cell_size: p.f64("cell_size")?,
+                lo: [side("x_min")?, side("y_min")?, side("z_min")?],
+                hi: [side("x_max")?, side("y_max")?, side("z_max")?],
+                flow: p.vec3("flow")?,
             };
-            let mut e = SceneElement::new(p.str("name"), ElementKind::FluidDomain, Geometry::None);
+            let mut e = SceneElement::new(p.str("name")?, ElementKind::FluidDomain, Geometry::None);
             e.secs.insert(sec);
             cx.set("element", Value::new(e));
             Ok(())
@@ -229,10 +236,10 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
 fn attachment(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let target = cx.input_as::<SceneElement>("target")?;
     let p = cx.params().clone();
-    let vertices = match p.str("select") {
+    let vertices = match p.str("select")? {
         "curve_roots" => match &*target.geometry {
             Geometry::Curves(c) => {
-                let k = p.i64("root_vertices") as u32;
+                let k = p.i64("root_vertices")? as u32;
                 (0..c.len())
                     .flat_map(|i| c.offsets[i]..(c.offsets[i] + k).min(c.offsets[i + 1]))
                     .collect()
@@ -256,12 +263,12 @@ fn attachment(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
             target.name
         )));
     }
-    let mode = if p.str("mode") == "spring" {
-        AttachmentMode::Spring(p.f64("stiffness"))
+    let mode = if p.str("mode")? == "spring" {
+        AttachmentMode::Spring(p.f64("stiffness")?)
     } else {
         AttachmentMode::Hard
     };
-    let mut e = SceneElement::new(p.str("name"), ElementKind::Attachment, Geometry::None);
+    let mut e = SceneElement::new(p.str("name")?, ElementKind::Attachment, Geometry::None);
     e.secs.insert(Attachment {
         target: target.name.clone(),
         vertices,

@@ -28,7 +28,7 @@ use weft_graph::{
 use weft_scene::Transform;
 use weft_sim::{
     BehaviorTree, Compiled, CoupledSettings, CoupledStepper, Coupling, Exchange, Relaxation,
-    RelaxationMethod, SimState, compile, fluid_change, relax, velocity_change,
+    RelaxationMethod, SimState, compile_within, fluid_change, relax, velocity_change,
 };
 use weft_solid::{Method, Settings, SolidSystem, State};
 
@@ -89,6 +89,20 @@ fn failed(e: impl std::fmt::Display) -> NodeError {
     NodeError::Failed(e.to_string())
 }
 
+/// A stage's error at `frame`: a stop (Ctrl-C, a time limit) stays a stop, with its reason.
+fn stage_error(
+    frame: i64,
+    e: weft_sim::CoupledError,
+    stop: &Option<weft_graph::Interrupt>,
+) -> NodeError {
+    if e.is_interrupted() {
+        let why = stop.as_ref().map_or("stopped".into(), |i| i.reason());
+        NodeError::Interrupted(format!("{why}: frame {frame}: {e}"))
+    } else {
+        NodeError::Failed(format!("frame {frame}: {e}"))
+    }
+}
+
 fn settings(compiled: &Compiled) -> CoupledSettings {
     let g = compiled.system.gravity;
     CoupledSettings {
@@ -109,19 +123,32 @@ struct Workspace {
     system: Option<SolidSystem>,
     targets: Vec<Vector3<f64>>,
     log: VecDeque<serde_json::Value>,
+    /// The graph's stop handle the solvers were given.
+    interrupt: Option<weft_graph::Interrupt>,
 }
 
 impl Workspace {
     fn for_scene(&mut self, c: &Arc<Compiled>) -> &mut Self {
         if self.compiled.as_ref().is_none_or(|o| !Arc::ptr_eq(o, c)) {
+            let interrupt = self.interrupt.take();
             *self = Workspace {
                 compiled: Some(c.clone()),
                 system: Some(c.system.clone()),
                 targets: c.state.x.clone(),
                 ..Default::default()
             };
+            self.stepper
+                .set_stop(interrupt.as_ref().map(|i| i.checker()));
+            self.interrupt = interrupt;
         }
         self
+    }
+    /// Hands the graph's stop handle to the solvers (once per handle).
+    fn watch(&mut self, i: weft_graph::Interrupt) {
+        if self.interrupt.as_ref().is_none_or(|o| !o.same(&i)) {
+            self.stepper.set_stop(Some(i.checker()));
+            self.interrupt = Some(i);
+        }
     }
     fn record(&mut self, j: serde_json::Value) {
         if self.log.len() == 1024 {
@@ -139,6 +166,7 @@ struct Stage {
 
 impl Compute for Stage {
     fn compute(&mut self, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
+        self.ws.watch(cx.interrupt());
         (self.run)(&mut self.ws, cx)
     }
     fn stats_json(&self) -> Option<serde_json::Value> {
@@ -166,7 +194,8 @@ fn setup(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let scene = cx.input("scene")?;
     let scene = get::<Scene>(&scene, "scene")?.clone();
     let tree = cx.input_as::<BehaviorTree>("tree")?;
-    let compiled = Arc::new(compile(&scene, &tree).map_err(failed)?);
+    let compiled =
+        Arc::new(compile_within(&scene, &tree, Some(cx.memory_budget())).map_err(failed)?);
     for w in &compiled.warnings {
         cx.warn(w.clone());
     }
@@ -206,7 +235,7 @@ fn predict(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let scene = Arc::new(get::<Scene>(&scene, "scene")?.clone());
     let frame = cx.frame();
     s.compiled.check_scene(&scene, frame).map_err(failed)?;
-    let method = match cx.params().str("method") {
+    let method = match cx.params().str("method")? {
         "one_way" => Coupling::OneWay,
         "staggered" => Coupling::Staggered,
         _ => Coupling::Newton,
@@ -215,10 +244,10 @@ fn predict(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let ws = ws.for_scene(&s.compiled);
     let mut st = settings(&s.compiled);
     st.method = method;
-    st.viscosity = cx.params().bool("viscosity");
+    st.viscosity = cx.params().bool("viscosity")?;
     st.pressure = PressureSolve {
-        tolerance: cx.params().f64("pressure_tolerance"),
-        max_iterations: cx.params().i64("pressure_max_iterations").max(1) as usize,
+        tolerance: cx.params().f64("pressure_tolerance")?,
+        max_iterations: cx.params().i64("pressure_max_iterations")?.max(1) as usize,
     };
     let u_star = match (&s.fluid, &s.compiled.fluid) {
         (Some(g), Some(spec)) => {
@@ -230,7 +259,7 @@ fn predict(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
             let done = ws
                 .stepper
                 .predict(g, h, &st, &mut out)
-                .map_err(|e| failed(format!("frame {frame}: {e}")))?;
+                .map_err(|e| stage_error(frame, e, &ws.interrupt))?;
             ws.record(serde_json::json!({
                 "frame": frame, "seconds": t.elapsed().as_secs_f64(),
                 "one_way_cg_iterations": done.projection_iterations,
@@ -263,7 +292,9 @@ fn forces(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let it = get::<CoupledState>(&itv, "iterate")?;
     let ws = ws.for_scene(&step.compiled);
     let mut ex = Exchange::default();
-    let st = settings(&step.compiled);
+    let mut st = settings(&step.compiled);
+    st.max_bytes = Some(cx.memory_budget());
+    let frame = cx.frame();
     // The fluid the solids see: one-way, the fluid projected without them; otherwise the
     // iterate's (at the first iteration, the last step's: divergence-free, with its pressure).
     let seen = match step.method {
@@ -273,15 +304,17 @@ fn forces(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     match seen {
         Some(g) => {
             let x = &it.sim.solid;
-            ws.stepper.gather(
-                &step.compiled.drag_elements,
-                &step.start.solid.x,
-                &x.x,
-                &x.v,
-                g,
-                &st,
-                &mut ex,
-            );
+            ws.stepper
+                .gather(
+                    &step.compiled.drag_elements,
+                    &step.start.solid.x,
+                    &x.x,
+                    &x.v,
+                    g,
+                    &st,
+                    &mut ex,
+                )
+                .map_err(|e| stage_error(frame, e, &ws.interrupt))?;
             if ex.outside > 0 && it.iteration == 0 {
                 cx.warn(format!(
                     "frame {}: {} of {} solid samples are outside the fluid domain (clipped: they feel the nearest fluid and give nothing back); enlarge the domain",
@@ -310,16 +343,17 @@ fn solid(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let ex = &get::<ExchangeValue>(&exv, "exchange")?.0;
     let p = cx.params();
     let mut st = settings(&step.compiled);
+    st.max_bytes = Some(weft_graph::memory::available());
     st.solid = Settings {
-        method: match p.str("method") {
+        method: match p.str("method")? {
             "explicit" => Method::Explicit,
             "linearized" => Method::Linearized,
             _ => Method::Newton,
         },
-        tolerance: p.f64("tolerance"),
-        max_iterations: p.i64("max_iterations").max(1) as usize,
+        tolerance: p.f64("tolerance")?,
+        max_iterations: p.i64("max_iterations")?.max(1) as usize,
     };
-    let relaxation_method = match p.str("relaxation") {
+    let relaxation_method = match p.str("relaxation")? {
         "quasi_newton" => RelaxationMethod::QuasiNewton,
         "none" => RelaxationMethod::None,
         _ => RelaxationMethod::Aitken,
@@ -349,7 +383,7 @@ fn solid(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
             it.iteration,
             &mut next,
         )
-        .map_err(|e| failed(format!("frame {frame}: {e}")))?;
+        .map_err(|e| stage_error(frame, e, &ws.interrupt))?;
     // The residual before relaxation: the relaxed change is small when the factor is.
     let change = velocity_change(&next.v, &it.sim.solid.v);
     let mut relaxation = it.relaxation.clone();
@@ -394,7 +428,7 @@ fn rasterize(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let sv = cx.input("solid")?;
     let solid = get::<SolidIterate>(&sv, "solid")?;
     let mut st = settings(&step.compiled);
-    st.max_solid_fraction = cx.params().f64("max_solid_fraction");
+    st.max_solid_fraction = cx.params().f64("max_solid_fraction")?;
     let ws = ws.for_scene(&step.compiled);
     let faces = match (&step.u_star, step.method) {
         (Some(u), Coupling::Newton | Coupling::Staggered) => {
@@ -420,8 +454,8 @@ fn pressure(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let faces = get::<FluidValue>(&fv, "faces")?;
     let mut st = settings(&step.compiled);
     st.pressure = PressureSolve {
-        tolerance: cx.params().f64("tolerance"),
-        max_iterations: cx.params().i64("max_iterations").max(1) as usize,
+        tolerance: cx.params().f64("tolerance")?,
+        max_iterations: cx.params().i64("max_iterations")?.max(1) as usize,
     };
     let frame = cx.frame();
     let ws = ws.for_scene(&step.compiled);
@@ -431,7 +465,7 @@ fn pressure(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
             let ps = ws
                 .stepper
                 .project(&mut g, step.h, &st, faces.1)
-                .map_err(|e| failed(format!("frame {frame}: {e}")))?;
+                .map_err(|e| stage_error(frame, e, &ws.interrupt))?;
             ws.record(serde_json::json!({
                 "frame": frame, "iteration": faces.1, "cg_iterations": ps.iterations, "divergence": ps.divergence,
                 "setup_seconds": ps.setup_seconds, "solve_seconds": ps.solve_seconds,
@@ -464,7 +498,7 @@ fn update(_: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let converged = fluid.is_none()
         || step
             .method
-            .converged(it.iteration, dv.max(du), cx.params().f64("tolerance"));
+            .converged(it.iteration, dv.max(du), cx.params().f64("tolerance")?);
     if !(dv.is_finite() && du.is_finite()) {
         return Err(failed(format!(
             "frame {}: coupling iteration {} produced a non-finite velocity",
@@ -499,6 +533,60 @@ fn finish(_: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     Ok(())
 }
 
+/// A frame's coupled state for a disk checkpoint: solids, fluid fields, last residuals
+/// (the compiled scene and the domain come back from the start frame's state).
+fn encode_state(v: &Value) -> Option<Vec<u8>> {
+    let s = v.get::<CoupledState>()?;
+    let mut w = weft_graph::codec::Writer::new();
+    super::checkpoint::write_sim(&mut w, &s.sim);
+    match &s.fluid {
+        Some(g) => {
+            w.u64(1);
+            super::checkpoint::write_grid(&mut w, g);
+        }
+        None => {
+            w.u64(0);
+        }
+    }
+    w.u64(s.iteration as u64).f64s(&s.residual);
+    Some(w.finish())
+}
+
+/// Rebuilds a coupled state from [`encode_state`]'s bytes, the start frame's state and the
+/// solver's inputs at the restored frame (its scene).
+fn restore_state(b: &[u8], template: &Value, inputs: &[(String, Value)]) -> Result<Value, String> {
+    let t = template
+        .get::<CoupledState>()
+        .ok_or("the start state is not a coupled state")?;
+    let mut r = weft_graph::codec::Reader::new(b);
+    let sim = super::checkpoint::read_sim(&mut r, &t.sim)?;
+    let fluid = match (r.u64()?, &t.fluid) {
+        (0, None) => None,
+        (1, Some(g)) => Some(Arc::new(super::checkpoint::read_grid(&mut r, g)?)),
+        _ => return Err("the fluid does not match the scene's".into()),
+    };
+    let iteration = r.u64()? as usize;
+    let residual = match r.f64s()?[..] {
+        [a, b] => [a, b],
+        _ => return Err("expected two residuals".into()),
+    };
+    r.end()?;
+    let scene = inputs
+        .iter()
+        .find(|(k, _)| k == "scene")
+        .and_then(|(_, v)| v.get::<Scene>())
+        .map_or_else(|| t.scene.clone(), |s| Arc::new(s.clone()));
+    Ok(Value::new(CoupledState {
+        compiled: t.compiled.clone(),
+        sim,
+        fluid,
+        scene,
+        iteration,
+        relaxation: Relaxation::default(),
+        residual,
+    }))
+}
+
 /// The library definition of `solver.coupled`.
 pub const SOLVER_COUPLED: &str = include_str!("solver_coupled.json");
 
@@ -519,7 +607,8 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                     })
                 })
             },
-        ),
+        )
+        .with_restore(encode_state, restore_state),
     )?;
     r.register_port_type(PortType::of::<StepStart>(
         "coupled_step",
@@ -660,7 +749,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             Ok(Kernel::from_fn(|cx| {
                 let v = cx.input("state")?;
                 let s = get::<CoupledState>(&v, "state")?;
-                let p = cx.params().vec3("point");
+                let p = cx.params().vec3("point")?;
                 let (vel, max) = match &s.fluid {
                     Some(g) => (
                         g.velocity_at(p),

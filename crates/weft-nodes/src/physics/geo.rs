@@ -1,6 +1,31 @@
 //! Geometry nodes: procedural meshes and strands, OBJ files.
 
+use weft_graph::memory::{check_within, product};
 use weft_graph::{Kernel, NodeError, NodeSpec, ParamSpec, Registry, RegistryError, Value};
+
+/// Bytes a mesh of `v` vertices and `t` triangles holds once wrapped into an element: its
+/// positions, the element's rest channel (a copy) and the triangles.
+fn mesh_bytes(v: u64, t: u64) -> u64 {
+    product(&[v, 48]).saturating_add(product(&[t, 12]))
+}
+
+/// Refuses a mesh or curve set that would not fit, or whose vertices a u32 cannot index.
+fn check_size(
+    cx: &weft_graph::EvalCx<'_>,
+    vertices: u64,
+    bytes: u64,
+    what: impl Fn() -> String,
+    hint: &str,
+) -> Result<(), NodeError> {
+    if vertices > u32::MAX as u64 {
+        return Err(NodeError::Failed(format!(
+            "{} makes {vertices} vertices, more than the 4294967295 a mesh or curve set can index; {hint}",
+            what()
+        )));
+    }
+    check_within(bytes, cx.memory_budget(), what, hint)?;
+    Ok(())
+}
 use weft_scene::procedural::{Plane, grid, sphere, strands_on_sphere};
 
 pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
@@ -42,17 +67,29 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         ),
         |_| {
             Ok(Kernel::from_fn(|cx| {
-                let p = cx.params();
-                let plane = if p.str("plane") == "xy" {
+                let p = cx.params().clone();
+                let (nx, ny) = (p.usize("nx")?, p.usize("ny")?);
+                let (v, t) = (
+                    product(&[nx as u64, ny as u64]),
+                    product(&[2, nx as u64 - 1, ny as u64 - 1]),
+                );
+                check_size(
+                    cx,
+                    v,
+                    mesh_bytes(v, t),
+                    || format!("nx × ny = {nx} × {ny} vertices"),
+                    "lower nx or ny",
+                )?;
+                let plane = if p.str("plane")? == "xy" {
                     Plane::Xy
                 } else {
                     Plane::Xz
                 };
                 let m = grid(
-                    [p.f64("width"), p.f64("height")],
-                    [p.i64("nx") as usize, p.i64("ny") as usize],
+                    [p.f64("width")?, p.f64("height")?],
+                    [nx, ny],
                     plane,
-                    p.vec3("center"),
+                    p.vec3("center")?,
                 );
                 cx.set("mesh", Value::new(m));
                 Ok(())
@@ -83,13 +120,17 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             ),
         |_| {
             Ok(Kernel::from_fn(|cx| {
-                let p = cx.params();
-                let m = sphere(
-                    p.vec3("center"),
-                    p.f64("radius"),
-                    p.i64("rings") as usize,
-                    p.i64("sectors") as usize,
-                );
+                let p = cx.params().clone();
+                let (rings, sectors) = (p.usize("rings")?, p.usize("sectors")?);
+                let v = product(&[rings as u64, sectors as u64]);
+                check_size(
+                    cx,
+                    v,
+                    mesh_bytes(v, 2 * v),
+                    || format!("rings × sectors = {rings} × {sectors}"),
+                    "lower rings or sectors",
+                )?;
+                let m = sphere(p.vec3("center")?, p.f64("radius")?, rings, sectors);
                 cx.set("mesh", Value::new(m));
                 Ok(())
             }))
@@ -139,14 +180,30 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         ),
         |_| {
             Ok(Kernel::from_fn(|cx| {
-                let p = cx.params();
+                let p = cx.params().clone();
+                let (count, segments) = (p.usize("count")?, p.usize("segments")?);
+                let v = product(&[count as u64, segments as u64 + 1]);
+                // Positions and the rest channel, and one offset per strand.
+                let bytes = product(&[v, 48]).saturating_add(product(&[count as u64, 4]));
+                check_size(
+                    cx,
+                    v,
+                    bytes,
+                    || {
+                        format!(
+                            "count × (segments + 1) = {count} × {} vertices",
+                            segments + 1
+                        )
+                    },
+                    "lower count or segments",
+                )?;
                 let c = strands_on_sphere(
-                    p.vec3("center"),
-                    p.f64("radius"),
-                    p.i64("count") as usize,
-                    p.i64("segments") as usize,
-                    p.f64("length"),
-                    p.f64("cap_degrees"),
+                    p.vec3("center")?,
+                    p.f64("radius")?,
+                    count,
+                    segments,
+                    p.f64("length")?,
+                    p.f64("cap_degrees")?,
                 );
                 cx.set("curves", Value::new(c));
                 Ok(())
@@ -165,15 +222,15 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                 .doc("OBJ file (relative to the working directory)"),
         ),
         |p| {
-            if p.str("path").is_empty() {
+            if p.str("path")?.is_empty() {
                 return Err("param 'path': must not be empty".into());
             }
             // The file's identity (path, size, modification time) enters the node's hash, so a
             // disk cache downstream is rewritten when the file changes between runs.
-            let meta = std::fs::metadata(p.str("path")).ok();
+            let meta = std::fs::metadata(p.str("path")?).ok();
             let stamp = format!(
                 "{}|{:?}|{:?}",
-                p.str("path"),
+                p.str("path")?,
                 meta.as_ref().map(|m| m.len()),
                 meta.and_then(|m| m.modified().ok())
             );
@@ -207,7 +264,7 @@ impl weft_graph::Compute for ObjFile {
     }
 
     fn compute(&mut self, cx: &mut weft_graph::EvalCx<'_>) -> Result<(), NodeError> {
-        let path = std::path::PathBuf::from(cx.params().str("path"));
+        let path = std::path::PathBuf::from(cx.params().str("path")?);
         let m = weft_scene::read_obj(&path).map_err(|e| NodeError::Failed(e.to_string()))?;
         cx.set("mesh", Value::new(m));
         Ok(())

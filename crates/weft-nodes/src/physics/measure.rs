@@ -5,7 +5,7 @@ use weft_graph::{EvalCx, Kernel, NodeError, NodeSpec, ParamSpec, Registry, Regis
 use weft_scene::SceneElement;
 
 fn element<'a>(cx: &EvalCx<'_>, scene: &'a Scene) -> Result<&'a SceneElement, NodeError> {
-    let name = cx.params().str("element");
+    let name = cx.params().str("element")?;
     scene.iter().find(|e| e.name == name).ok_or_else(|| {
         let names: Vec<&str> = scene.iter().map(|e| e.name.as_str()).collect();
         NodeError::Input {
@@ -82,7 +82,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             Ok(Kernel::from_fn(|cx| {
                 let scene = cx.input_as::<Scene>("scene")?;
                 let e = element(cx, &scene)?;
-                let i = cx.params().i64("index") as usize;
+                let i = cx.params().i64("index")? as usize;
                 let p = *e.geometry.positions().get(i).ok_or_else(|| {
                     NodeError::Failed(format!(
                         "param 'index': vertex {i} is out of range ('{}' has {} vertices)",

@@ -2,6 +2,7 @@
 //! outputs. Port types for scene data are registered here too.
 
 mod behaviors;
+mod checkpoint;
 mod convert;
 mod coupled;
 mod geo;

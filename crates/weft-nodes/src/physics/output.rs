@@ -4,9 +4,9 @@
 
 use super::coupled::CoupledState;
 use super::types::Scene;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use weft_graph::{EvalCx, Kernel, NodeError, NodeSpec, ParamSpec, Registry, RegistryError};
-use weft_scene::preview::{Image, PreviewItem, auto_camera, render, write_png};
+use weft_scene::preview::{Image, PreviewItem, auto_camera, encode_png, render};
 use weft_scene::{
     ElementKind, Geometry, SceneElement, UsdaScene, bounds, write_obj_curves, write_obj_mesh,
 };
@@ -31,9 +31,9 @@ fn selected<'a>(scene: &'a Scene, names: &str) -> Vec<&'a SceneElement> {
 
 fn obj(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let scene = cx.input_as::<Scene>("scene")?;
-    let dir = PathBuf::from(cx.params().str("directory"));
+    let dir = cx.output_path("directory")?;
     let frame = cx.frame();
-    for e in selected(&scene, cx.params().str("elements")) {
+    for e in selected(&scene, cx.params().str("elements")?) {
         let path = dir.join(format!("{}.{frame:04}.obj", e.name));
         let r = weft_graph::atomic_write_with(&path, |w| match &*e.geometry {
             Geometry::Mesh(m) => write_obj_mesh(m, &mut &mut *w),
@@ -57,8 +57,8 @@ struct UsdOut {
 impl weft_graph::Compute for UsdOut {
     fn compute(&mut self, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
         let scene = cx.input_as::<Scene>("scene")?;
-        let path = PathBuf::from(cx.params().str("path"));
-        let elements = selected(&scene, cx.params().str("elements"));
+        let path = cx.output_path("path")?;
+        let elements = selected(&scene, cx.params().str("elements")?);
         let names: Vec<String> = elements.iter().map(|e| e.name.clone()).collect();
         let upstream = cx.input_structure_hash("scene")?;
         let fresh = upstream != self.upstream
@@ -129,10 +129,10 @@ fn fluid_panel(
     p: &weft_graph::Params,
     flow: [f64; 3],
     height: u32,
-) -> Image {
+) -> Result<Image, NodeError> {
     let d = &grid.domain;
     let size = d.size();
-    let n = match p.str("slice_axis") {
+    let n = match p.str("slice_axis")? {
         "x" => 0,
         "y" => 1,
         _ => 2,
@@ -145,7 +145,7 @@ fn fluid_panel(
     };
     let h = height;
     let w = ((h as f64 * size[a] / size[b]).round() as u32).clamp(16, 4 * h);
-    let at = d.origin[n] + p.f64("slice_at").clamp(0.0, 1.0) * size[n];
+    let at = d.origin[n] + p.f64("slice_at")?.clamp(0.0, 1.0) * size[n];
     let mut speeds = vec![0.0; (w * h) as usize];
     for py in 0..h {
         for px in 0..w {
@@ -158,7 +158,7 @@ fn fluid_panel(
         }
     }
     let wind = (flow[0] * flow[0] + flow[1] * flow[1] + flow[2] * flow[2]).sqrt();
-    let scale = match p.f64("speed_scale") {
+    let scale = match p.f64("speed_scale")? {
         s if s > 0.0 => s,
         _ if wind > 0.0 => 1.5 * wind,
         _ => speeds.iter().cloned().fold(1e-12, f64::max),
@@ -190,7 +190,7 @@ fn fluid_panel(
             }
         }
     }
-    img
+    Ok(img)
 }
 
 /// Two images of the same height, left and right, with a 2-pixel white rule between.
@@ -214,11 +214,46 @@ fn side_by_side(l: &Image, r: &Image) -> Image {
     }
 }
 
+/// The first element vertex that is not finite: nothing non-finite is drawn into a file.
+fn non_finite(elements: &[&SceneElement]) -> Result<(), NodeError> {
+    for e in elements {
+        if let Some(i) = e
+            .geometry
+            .positions()
+            .iter()
+            .position(|p| !p.iter().all(|c| c.is_finite()))
+        {
+            return Err(NodeError::Failed(format!(
+                "element '{}': vertex {i} is not finite ({:?}); nothing was written",
+                e.name,
+                e.geometry.positions()[i]
+            )));
+        }
+    }
+    Ok(())
+}
+
 fn preview(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let scene = cx.input_as::<Scene>("scene")?;
     let p = cx.params().clone();
-    let (w, h) = (p.i64("width") as u32, p.i64("height") as u32);
-    let elements = selected(&scene, p.str("elements"));
+    let (w, h) = (p.usize("width")? as u32, p.usize("height")? as u32);
+    let prefix = p.str("prefix")?;
+    if prefix.is_empty() || prefix.contains(['/', '\\']) || prefix.contains("..") {
+        return Err(NodeError::Failed(format!(
+            "param 'prefix': must be a non-empty file name prefix without '/', '\\' or '..', got {prefix:?}"
+        )));
+    }
+    // The render (colour, depth), a fluid panel up to four times as wide with its speeds,
+    // and the two side by side: about 40 bytes a pixel of the tallest layout.
+    let need = weft_graph::memory::product(&[w as u64 * 5, h as u64, 40]);
+    weft_graph::memory::check_within(
+        need,
+        cx.memory_budget(),
+        || format!("a {w} × {h} preview"),
+        "lower width or height",
+    )?;
+    let elements = selected(&scene, p.str("elements")?);
+    non_finite(&elements)?;
     let items: Vec<PreviewItem<'_>> = elements
         .iter()
         .filter_map(|e| match &*e.geometry {
@@ -241,7 +276,7 @@ fn preview(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
         .collect();
     let cam = match bounds(&rest) {
         Some((lo, hi)) => {
-            let m = p.f64("margin");
+            let m = p.f64("margin")?;
             let c: Vec<f64> = (0..3).map(|k| 0.5 * (lo[k] + hi[k])).collect();
             let half: Vec<f64> = (0..3)
                 .map(|k| 0.5 * (hi[k] - lo[k]).max(1e-3) * m)
@@ -262,18 +297,16 @@ fn preview(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
         && let Some(grid) = &state.fluid
     {
         let flow = state.compiled.fluid.as_ref().map_or([0.0; 3], |f| f.flow);
-        let panel = fluid_panel(grid, &elements, &p, flow, h);
+        let panel = fluid_panel(grid, &elements, &p, flow, h)?;
         image = side_by_side(&image, &panel);
     }
-    let path = PathBuf::from(p.str("directory")).join(format!(
-        "{}.{:04}.png",
-        p.str("prefix"),
-        cx.frame()
-    ));
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| fail(dir, e))?;
-    }
-    write_png(&image, &path).map_err(|e| fail(&path, e))?;
+    let path = cx
+        .output_path("directory")?
+        .join(format!("{prefix}.{:04}.png", cx.frame()));
+    weft_graph::atomic_write_with(&path, |w| {
+        encode_png(&image, &path, &mut &mut *w).map_err(std::io::Error::other)
+    })
+    .map_err(|e| fail(&path, e))?;
     cx.set("path", path.display().to_string());
     Ok(())
 }
@@ -287,7 +320,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         NodeSpec::new("output.obj", "writes each element's geometry at each frame as DIRECTORY/NAME.FRAME.obj (curves as polylines)")
             .input("scene", "scene", "the scene to write")
             .output("path", "string", "the directory written to")
-            .param(ParamSpec::string("directory", "out/obj").doc("output directory (relative to the working directory)"))
+            .param(ParamSpec::string("directory", "out/obj").doc("output directory (under --out when given, else the working directory)"))
             .param(elements()),
         |_| Ok(Kernel::from_fn(obj)),
     )?;
@@ -295,7 +328,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         NodeSpec::new("output.usd", "writes a .usda file with time-sampled points: Mesh prims for cloth and colliders, BasisCurves for hair")
             .input("scene", "scene", "the scene to write")
             .output("path", "string", "the file written")
-            .param(ParamSpec::string("path", "out/scene.usda").doc("output file (rewritten with all frames so far after each frame)"))
+            .param(ParamSpec::string("path", "out/scene.usda").doc("output file (under --out when given, else the working directory; rewritten with all frames so far after each frame)"))
             .param(elements()),
         |_| Ok(Kernel::Compute(Box::new(UsdOut { scene: None, upstream: 0 }))),
     )?;
@@ -304,7 +337,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             .input("scene", "scene", "the scene to draw")
             .input_default("fluid", "coupled", serde_json::json!(null), "a coupled solver state: adds a panel with a slice of fluid speed (dark blue still, yellow at speed_scale) and the solids' vertices projected on it")
             .output("path", "string", "the image written")
-            .param(ParamSpec::string("directory", "out/preview").doc("output directory (relative to the working directory)"))
+            .param(ParamSpec::string("directory", "out/preview").doc("output directory (under --out when given, else the working directory)"))
             .param(ParamSpec::string("prefix", "frame").doc("file name prefix"))
             .param(ParamSpec::int("width", 640).ge(16.0).le(8192.0).doc("image width [px]"))
             .param(ParamSpec::int("height", 480).ge(16.0).le(8192.0).doc("image height [px]"))

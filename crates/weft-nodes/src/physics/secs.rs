@@ -2,14 +2,14 @@
 //! checked when the graph loads, so a negative stiffness or ν ≥ 0.5 is a load error naming the
 //! node and parameter. Defaults are the SEC types' documented defaults.
 
-use weft_graph::{Kernel, NodeSpec, ParamSpec, Params, Registry, RegistryError, Value};
+use weft_graph::{Kernel, NodeSpec, ParamError, ParamSpec, Params, Registry, RegistryError, Value};
 use weft_scene::{Density, DiscreteShell, Drag, Fluid, Rod, SceneElement, Sec};
 
 fn attach<S: Sec + Clone>(
     name: &str,
     doc: &str,
     params: Vec<ParamSpec>,
-    build: fn(&Params) -> S,
+    build: fn(&Params) -> Result<S, ParamError>,
     r: &mut Registry,
 ) -> Result<(), RegistryError> {
     let mut spec = NodeSpec::new(name, doc)
@@ -25,7 +25,7 @@ fn attach<S: Sec + Clone>(
     r.register(spec, move |_| {
         Ok(Kernel::from_fn(move |cx| {
             let mut e = cx.input_as::<SceneElement>("element")?;
-            e.secs.insert(build(cx.params()));
+            e.secs.insert(build(cx.params())?);
             cx.set("element", Value::new(e));
             Ok(())
         }))
@@ -70,17 +70,19 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                 .doc("shear stiffness multiplier"),
             ParamSpec::vec3("warp_direction", d.warp_direction).doc("warp direction in rest space"),
         ],
-        |p| DiscreteShell {
-            youngs_modulus: p.f64("youngs_modulus"),
-            poisson_ratio: p.f64("poisson_ratio"),
-            thickness: p.f64("thickness"),
-            bend_scale: p.f64("bend_scale"),
-            damping: p.f64("damping"),
-            rest_channel: p.str("rest_channel").to_string(),
-            warp_scale: p.f64("warp_scale"),
-            weft_scale: p.f64("weft_scale"),
-            shear_scale: p.f64("shear_scale"),
-            warp_direction: p.vec3("warp_direction"),
+        |p| {
+            Ok(DiscreteShell {
+                youngs_modulus: p.f64("youngs_modulus")?,
+                poisson_ratio: p.f64("poisson_ratio")?,
+                thickness: p.f64("thickness")?,
+                bend_scale: p.f64("bend_scale")?,
+                damping: p.f64("damping")?,
+                rest_channel: p.str("rest_channel")?.to_string(),
+                warp_scale: p.f64("warp_scale")?,
+                weft_scale: p.f64("weft_scale")?,
+                shear_scale: p.f64("shear_scale")?,
+                warp_direction: p.vec3("warp_direction")?,
+            })
         },
         r,
     )?;
@@ -114,14 +116,16 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             ParamSpec::string("rest_channel", &d.rest_channel)
                 .doc("channel with rest positions (initial positions when absent)"),
         ],
-        |p| Rod {
-            youngs_modulus: p.f64("youngs_modulus"),
-            radius: p.f64("radius"),
-            stretch_scale: p.f64("stretch_scale"),
-            bend_stiffness: p.f64("bend_stiffness"),
-            bend_scale: p.f64("bend_scale"),
-            damping: p.f64("damping"),
-            rest_channel: p.str("rest_channel").to_string(),
+        |p| {
+            Ok(Rod {
+                youngs_modulus: p.f64("youngs_modulus")?,
+                radius: p.f64("radius")?,
+                stretch_scale: p.f64("stretch_scale")?,
+                bend_stiffness: p.f64("bend_stiffness")?,
+                bend_scale: p.f64("bend_scale")?,
+                damping: p.f64("damping")?,
+                rest_channel: p.str("rest_channel")?.to_string(),
+            })
         },
         r,
     )?;
@@ -139,9 +143,11 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                 .unit("kg/m")
                 .doc("hair mass per rest length"),
         ],
-        |p| Density {
-            area_density: p.f64("area_density"),
-            line_density: p.f64("line_density"),
+        |p| {
+            Ok(Density {
+                area_density: p.f64("area_density")?,
+                line_density: p.f64("line_density")?,
+            })
         },
         r,
     )?;
@@ -177,15 +183,17 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                 .ge(0.0)
                 .doc("drag degree c: the exponent of the Reynolds number"),
         ],
-        |p| Drag {
-            xi_d: p.f64("xi_d"),
-            xi_perp: p.f64("xi_perp"),
-            xi_par: p.f64("xi_par"),
-            xi_n: p.f64("xi_n"),
-            xi_l: p.f64("xi_l"),
-            diameter: p.f64("diameter"),
-            gamma: p.f64("gamma"),
-            degree: p.f64("degree"),
+        |p| {
+            Ok(Drag {
+                xi_d: p.f64("xi_d")?,
+                xi_perp: p.f64("xi_perp")?,
+                xi_par: p.f64("xi_par")?,
+                xi_n: p.f64("xi_n")?,
+                xi_l: p.f64("xi_l")?,
+                diameter: p.f64("diameter")?,
+                gamma: p.f64("gamma")?,
+                degree: p.f64("degree")?,
+            })
         },
         r,
     )?;
@@ -204,13 +212,15 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                 .unit("Pa·s")
                 .doc("dynamic viscosity μ (preset custom only)"),
         ],
-        |p| match p.str("preset") {
-            "air" => Fluid::AIR,
-            "custom" => Fluid {
-                density: p.f64("density"),
-                viscosity: p.f64("viscosity"),
-            },
-            _ => Fluid::WATER,
+        |p| {
+            Ok(match p.str("preset")? {
+                "air" => Fluid::AIR,
+                "custom" => Fluid {
+                    density: p.f64("density")?,
+                    viscosity: p.f64("viscosity")?,
+                },
+                _ => Fluid::WATER,
+            })
         },
         r,
     )

@@ -15,7 +15,7 @@ use weft_graph::{
 };
 use weft_scene::SceneElement;
 use weft_sim::{
-    BehaviorTree, Compiled, FrameStats, SimState, SolidStepper, StepperSettings, compile,
+    BehaviorTree, Compiled, FrameStats, SimState, SolidStepper, StepperSettings, compile_within,
 };
 use weft_solid::{Method, Settings};
 
@@ -30,23 +30,26 @@ struct SolidSolver {
     stepper: Option<SolidStepper>,
     frames: VecDeque<(i64, FrameStats)>,
     compiled: Option<Arc<Compiled>>,
+    /// The graph's stop handle the stepper was given.
+    interrupt: Option<weft_graph::Interrupt>,
 }
 
-fn settings(p: &Params) -> StepperSettings {
-    let method = match p.str("method") {
+fn settings(p: &Params, max_bytes: u64) -> Result<StepperSettings, weft_graph::ParamError> {
+    let method = match p.str("method")? {
         "explicit" => Method::Explicit,
         "linearized" => Method::Linearized,
         _ => Method::Newton,
     };
-    StepperSettings {
-        substeps: p.i64("substeps").max(1) as usize,
-        max_retries: p.i64("max_retries").max(0) as usize,
+    Ok(StepperSettings {
+        substeps: p.usize("substeps")?.max(1),
+        max_retries: p.usize("max_retries")?,
+        max_bytes: Some(max_bytes),
         solver: Settings {
             method,
-            tolerance: p.f64("tolerance"),
-            max_iterations: p.i64("max_iterations").max(1) as usize,
+            tolerance: p.f64("tolerance")?,
+            max_iterations: p.usize("max_iterations")?.max(1),
         },
-    }
+    })
 }
 
 fn scene_input(cx: &mut EvalCx<'_>) -> Result<Scene, NodeError> {
@@ -62,6 +65,7 @@ impl SolidSolver {
         &mut self,
         compiled: &Arc<Compiled>,
         p: &Params,
+        stop: weft_graph::Interrupt,
     ) -> Result<&mut SolidStepper, NodeError> {
         let fresh = self
             .stepper
@@ -69,11 +73,20 @@ impl SolidSolver {
             .is_none_or(|s| !std::ptr::eq(s.compiled(), &**compiled));
         if fresh {
             self.stepper = Some(
-                SolidStepper::new(compiled.clone(), settings(p))
-                    .map_err(|e| NodeError::Failed(e.to_string()))?,
+                SolidStepper::new(
+                    compiled.clone(),
+                    settings(p, weft_graph::memory::available())?,
+                )
+                .map_err(|e| NodeError::Failed(e.to_string()))?,
             );
+            self.interrupt = None;
         }
-        Ok(self.stepper.as_mut().expect("just built"))
+        let stepper = self.stepper.as_mut().expect("just built");
+        if self.interrupt.as_ref().is_none_or(|i| !i.same(&stop)) {
+            stepper.set_stop(Some(stop.checker()));
+            self.interrupt = Some(stop);
+        }
+        Ok(stepper)
     }
 }
 
@@ -81,15 +94,17 @@ impl Step for SolidSolver {
     fn init(&mut self, cx: &mut EvalCx<'_>) -> Result<Value, NodeError> {
         let scene = scene_input(cx)?;
         let tree = cx.input_as::<BehaviorTree>("tree")?;
-        let compiled =
-            Arc::new(compile(&scene, &tree).map_err(|e| NodeError::Failed(e.to_string()))?);
+        let compiled = Arc::new(
+            compile_within(&scene, &tree, Some(cx.memory_budget()))
+                .map_err(|e| NodeError::Failed(e.to_string()))?,
+        );
         for w in &compiled.warnings {
             cx.warn(w.clone());
         }
         self.compiled = Some(compiled.clone());
         self.frames.clear();
         let params = cx.params().clone();
-        let stepper = self.stepper(&compiled, &params)?;
+        let stepper = self.stepper(&compiled, &params, cx.interrupt())?;
         let sim = stepper.initial_state(&scene);
         let out = stepper.scene_at(&scene, &sim);
         Ok(Value::new(SolverState {
@@ -100,14 +115,21 @@ impl Step for SolidSolver {
     }
 
     fn step(&mut self, state: &Value, cx: &mut EvalCx<'_>) -> Result<Value, NodeError> {
-        let prev = state.get::<SolverState>().expect("solver state");
+        let prev = state
+            .get::<SolverState>()
+            .ok_or_else(|| NodeError::Failed("the state is not a solver.solid state".into()))?;
         let scene = scene_input(cx)?;
         let (frame, dt) = (cx.frame(), 1.0 / cx.context().fps);
         let params = cx.params().clone();
-        let stepper = self.stepper(&prev.compiled, &params)?;
+        let stepper = self.stepper(&prev.compiled, &params, cx.interrupt())?;
         let (sim, stats) = stepper
             .advance(&prev.sim, &scene, frame, dt)
-            .map_err(|e| NodeError::Failed(e.to_string()))?;
+            .map_err(|e| match e {
+                weft_sim::SimError::Interrupted { .. } => {
+                    NodeError::Interrupted(format!("{}: {e}", cx.interrupt().reason()))
+                }
+                e => NodeError::Failed(e.to_string()),
+            })?;
         if stats.retries > 0 {
             cx.warn(format!(
                 "{} substep(s) failed and were retried with smaller steps",
@@ -127,9 +149,44 @@ impl Step for SolidSolver {
     }
 
     fn outputs(&mut self, state: &Value, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
-        let s = state.get::<SolverState>().expect("solver state");
+        let s = state
+            .get::<SolverState>()
+            .ok_or_else(|| NodeError::Failed("the state is not a solver.solid state".into()))?;
         cx.set("scene", s.scene.clone());
         Ok(())
+    }
+
+    fn save_state(&self, state: &Value, _: &weft_graph::Registry) -> Option<Vec<u8>> {
+        let s = state.get::<SolverState>()?;
+        let mut w = weft_graph::codec::Writer::new();
+        super::checkpoint::write_sim(&mut w, &s.sim);
+        Some(w.finish())
+    }
+
+    /// The saved positions, velocities and transforms on the start frame's compiled scene;
+    /// the output scene is rebuilt from the frame's input scene, as a step does.
+    fn load_state(
+        &mut self,
+        bytes: &[u8],
+        initial: &Value,
+        cx: &mut EvalCx<'_>,
+    ) -> Result<Value, NodeError> {
+        let init = initial.get::<SolverState>().ok_or_else(|| {
+            NodeError::Failed("the start state is not a solver.solid state".into())
+        })?;
+        let mut r = weft_graph::codec::Reader::new(bytes);
+        let sim = super::checkpoint::read_sim(&mut r, &init.sim)
+            .and_then(|s| r.end().map(|()| s))
+            .map_err(|m| NodeError::Failed(format!("checkpoint: {m}")))?;
+        let scene = scene_input(cx)?;
+        let params = cx.params().clone();
+        let stepper = self.stepper(&init.compiled, &params, cx.interrupt())?;
+        let out = stepper.scene_at(&scene, &sim);
+        Ok(Value::new(SolverState {
+            compiled: init.compiled.clone(),
+            sim,
+            scene: Value::new(out),
+        }))
     }
 
     fn stats_json(&self) -> Option<serde_json::Value> {
@@ -166,6 +223,6 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             .param(ParamSpec::float("tolerance", 1e-6).gt(0.0).unit("m/s").doc("Newton stops when a further iteration would change velocities by less"))
             .param(ParamSpec::int("max_iterations", 50).ge(1.0).le(10_000.0).doc("Newton iteration limit per step"))
             .param(ParamSpec::int("max_retries", 4).ge(0.0).le(16.0).doc("levels of step halving when a step fails")),
-        |_| Ok(Kernel::Step(Box::new(SolidSolver { stepper: None, frames: VecDeque::new(), compiled: None }))),
+        |_| Ok(Kernel::Step(Box::new(SolidSolver { stepper: None, frames: VecDeque::new(), compiled: None, interrupt: None }))),
     )
 }

@@ -16,19 +16,19 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             .param(ParamSpec::float("spin", 0.0).unit("rad/s").doc("steady rotation speed"))
             .param(ParamSpec::float("swing", 0.0).unit("rad").doc("rotation oscillation amplitude (same frequency)")),
         |p| {
-            let a = p.vec3("axis");
+            let a = p.vec3("axis")?;
             if (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt() < 1e-12 {
                 return Err("param 'axis': must not be zero".into());
             }
             Ok(Kernel::from_fn(|cx| {
                 let p = cx.params();
                 let t = cx.time();
-                let s = (TAU * p.f64("frequency") * t).sin();
-                let (c, o) = (p.vec3("translate"), p.vec3("oscillate"));
+                let s = (TAU * p.f64("frequency")? * t).sin();
+                let (c, o) = (p.vec3("translate")?, p.vec3("oscillate")?);
                 let tr = nalgebra::Translation3::new(c[0] + o[0] * s, c[1] + o[1] * s, c[2] + o[2] * s);
-                let a = p.vec3("axis");
+                let a = p.vec3("axis")?;
                 let axis = nalgebra::Unit::new_normalize(nalgebra::Vector3::new(a[0], a[1], a[2]));
-                let angle = p.f64("spin") * t + p.f64("swing") * s;
+                let angle = p.f64("spin")? * t + p.f64("swing")? * s;
                 let x = Transform::from_parts(tr, nalgebra::UnitQuaternion::from_axis_angle(&axis, angle));
                 cx.set("transform", Value::new(x));
                 Ok(())

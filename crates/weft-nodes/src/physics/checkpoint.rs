@@ -1,0 +1,157 @@
+//! Byte encodings of the solvers' states for disk checkpoints (`weft run --out`): what a
+//! killed run resumes from. Everything a state holds that the start frame cannot rebuild is
+//! written bit for bit (positions, velocities, transforms, the fluid's fields); the rest (the
+//! compiled scene, the fluid's domain) comes from the start frame's state on restore, and is
+//! checked against what the bytes say.
+
+use weft_fluid::MacGrid;
+use weft_graph::codec::{Reader, Writer};
+use weft_scene::Transform;
+use weft_sim::SimState;
+use weft_solid::State;
+
+fn vecs(v: &[nalgebra::Vector3<f64>]) -> Vec<[f64; 3]> {
+    v.iter().map(|p| [p.x, p.y, p.z]).collect()
+}
+
+fn unvecs(v: Vec<[f64; 3]>) -> Vec<nalgebra::Vector3<f64>> {
+    v.into_iter().map(nalgebra::Vector3::from).collect()
+}
+
+/// Writes a solid state and its frame's transforms.
+pub(crate) fn write_sim(w: &mut Writer, s: &SimState) {
+    w.vec3s(&vecs(&s.solid.x)).vec3s(&vecs(&s.solid.v));
+    w.u64(s.transforms.len() as u64);
+    for t in &s.transforms {
+        match t {
+            None => {
+                w.u64(0);
+            }
+            Some(t) => {
+                let q = t.rotation.quaternion().coords;
+                let p = t.translation.vector;
+                w.u64(1).f64s(&[q.x, q.y, q.z, q.w, p.x, p.y, p.z]);
+            }
+        }
+    }
+}
+
+/// Reads what [`write_sim`] wrote; `vertices` and `elements` must match the template.
+pub(crate) fn read_sim(r: &mut Reader<'_>, template: &SimState) -> Result<SimState, String> {
+    let x = unvecs(r.vec3s()?);
+    let v = unvecs(r.vec3s()?);
+    let n = template.solid.x.len();
+    if x.len() != n || v.len() != n {
+        return Err(format!(
+            "{} positions and {} velocities for {n} vertices",
+            x.len(),
+            v.len()
+        ));
+    }
+    let count = r.u64()?;
+    if count != template.transforms.len() as u64 {
+        return Err(format!(
+            "{count} transforms for {} elements",
+            template.transforms.len()
+        ));
+    }
+    let mut transforms = Vec::with_capacity(template.transforms.len());
+    for _ in 0..count {
+        transforms.push(match r.u64()? {
+            0 => None,
+            1 => {
+                let c = r.f64s()?;
+                let [qx, qy, qz, qw, tx, ty, tz] = c[..] else {
+                    return Err(format!("a transform of {} numbers", c.len()));
+                };
+                // Bit for bit: no renormalization of the stored unit quaternion.
+                let q = nalgebra::UnitQuaternion::new_unchecked(nalgebra::Quaternion::new(
+                    qw, qx, qy, qz,
+                ));
+                Some(Transform::from_parts(
+                    nalgebra::Translation3::new(tx, ty, tz),
+                    q,
+                ))
+            }
+            k => return Err(format!("transform tag {k}")),
+        });
+    }
+    Ok(SimState {
+        solid: State { x, v },
+        transforms,
+    })
+}
+
+/// Writes a fluid's fields (the domain is the compiled scene's, not stored).
+pub(crate) fn write_grid(w: &mut Writer, g: &MacGrid) {
+    for a in 0..3 {
+        w.f64s(&g.vel[a])
+            .f64s(&g.alpha[a])
+            .f64s(&g.drag[a])
+            .f64s(&g.solid_vel[a]);
+    }
+    w.f64s(&g.pressure);
+}
+
+/// Reads what [`write_grid`] wrote into a grid on `template`'s domain.
+pub(crate) fn read_grid(r: &mut Reader<'_>, template: &MacGrid) -> Result<MacGrid, String> {
+    let mut g = MacGrid::new(template.domain.clone());
+    for a in 0..3 {
+        for field in [
+            &mut g.vel[a],
+            &mut g.alpha[a],
+            &mut g.drag[a],
+            &mut g.solid_vel[a],
+        ] {
+            let v = r.f64s()?;
+            if v.len() != field.len() {
+                return Err(format!("{} face values for {} faces", v.len(), field.len()));
+            }
+            *field = v;
+        }
+    }
+    let p = r.f64s()?;
+    if p.len() != g.pressure.len() {
+        return Err(format!(
+            "{} pressures for {} cells",
+            p.len(),
+            g.pressure.len()
+        ));
+    }
+    g.pressure = p;
+    Ok(g)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sim_states_round_trip_bit_for_bit() {
+        let rot = nalgebra::UnitQuaternion::from_euler_angles(0.1, -0.7, 2.3);
+        let s = SimState {
+            solid: State {
+                x: vec![nalgebra::Vector3::new(0.1, -0.0, 1e-300); 3],
+                v: vec![nalgebra::Vector3::new(f64::MIN_POSITIVE, 2.0, -3.5); 3],
+            },
+            transforms: vec![
+                None,
+                Some(Transform::from_parts(
+                    nalgebra::Translation3::new(1.0, 2.0, 3.0),
+                    rot,
+                )),
+            ],
+        };
+        let mut w = Writer::new();
+        write_sim(&mut w, &s);
+        let b = w.finish();
+        let back = read_sim(&mut Reader::new(&b), &s).unwrap();
+        assert_eq!(back, s);
+        let mut w2 = Writer::new();
+        write_sim(&mut w2, &back);
+        assert_eq!(w2.finish(), b);
+        for cut in 0..b.len() {
+            assert!(read_sim(&mut Reader::new(&b[..cut]), &s).is_err());
+        }
+    }
+}
