@@ -207,6 +207,18 @@ pub fn run(registry: &Arc<Registry>, a: RunArgs) -> ExitCode {
         );
         b
     });
+    // Warnings are printed when raised (a cost estimate before a long frame, a retried
+    // substep), above the progress bar.
+    let sink_bar = bar.clone();
+    g.set_warning_sink(Some(std::sync::Arc::new(
+        move |w: &weft_graph::RunWarning| {
+            let line = warning_line(w);
+            match &sink_bar {
+                Some(b) => b.println(line),
+                None => eprintln!("{line}"),
+            }
+        },
+    )));
     let mut rows: Vec<(i64, Vec<serde_json::Value>)> = Vec::new();
     let mut failure = None;
     let t_run = Instant::now();
@@ -267,13 +279,8 @@ pub fn run(registry: &Arc<Registry>, a: RunArgs) -> ExitCode {
     if a.stats {
         eprint!("{}", stats_text(&g, seconds));
     }
-    for w in g.take_warnings() {
-        let at = w
-            .frame
-            .map(|f| format!(" at frame {f}"))
-            .unwrap_or_default();
-        eprintln!("warning: node '{}'{at}: {}", w.node, w.message);
-    }
+    // Already printed by the sink as they came.
+    g.take_warnings();
     if let Some(e) = failure {
         let stopped = matches!(*e.error, weft_graph::NodeError::Interrupted(_));
         eprintln!("error: {e}");
@@ -295,6 +302,14 @@ pub fn run(registry: &Arc<Registry>, a: RunArgs) -> ExitCode {
         return ExitCode::from(if ctrl_c { 130 } else { 1 });
     }
     code
+}
+
+fn warning_line(w: &weft_graph::RunWarning) -> String {
+    let at = w
+        .frame
+        .map(|f| format!(" at frame {f}"))
+        .unwrap_or_default();
+    format!("warning: node '{}'{at}: {}", w.node, w.message)
 }
 
 fn stats_json(g: &Graph, seconds: f64) -> String {

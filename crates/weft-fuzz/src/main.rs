@@ -17,41 +17,41 @@ struct Cli {
 #[derive(clap::Args, Debug, Clone)]
 struct Opts {
     /// Cases to run [default: 1000, unless --seconds is given].
-    #[arg(long)]
+    #[arg(long, global = true)]
     cases: Option<u64>,
     /// Stop starting cases after this many seconds.
-    #[arg(long)]
+    #[arg(long, global = true)]
     seconds: Option<f64>,
     /// Seed of the case generator (a run is reproducible from it).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, global = true)]
     seed: u64,
     /// Run only this case index (to reproduce one).
-    #[arg(long)]
+    #[arg(long, global = true)]
     only: Option<u64>,
     /// Worker processes side by side [default: one per core].
-    #[arg(long)]
+    #[arg(long, global = true)]
     jobs: Option<usize>,
     /// Each worker's memory ceiling (address space) in MiB; an allocation past it aborts
     /// the worker, which counts as a defect.
-    #[arg(long, default_value_t = 4096)]
+    #[arg(long, default_value_t = 4096, global = true)]
     memory_limit_mib: u64,
     /// Each case's `weft run --time-limit` in seconds.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, global = true)]
     time_limit: f64,
     /// Seconds past the time limit after which a silent worker is a hang.
-    #[arg(long, default_value_t = 20.0)]
+    #[arg(long, default_value_t = 20.0, global = true)]
     grace: f64,
     /// Frames each case runs.
-    #[arg(long, default_value = "0..1")]
+    #[arg(long, default_value = "0..1", global = true)]
     frames: String,
     /// Seed directories [default: graphs/ and tests/fuzz/seeds/].
-    #[arg(long = "seeds")]
+    #[arg(long = "seeds", global = true)]
     seeds: Vec<PathBuf>,
     /// Copy every failing case here [default: fuzz-out/failures].
-    #[arg(long)]
+    #[arg(long, global = true)]
     save: Option<PathBuf>,
     /// Write the report as JSON.
-    #[arg(long)]
+    #[arg(long, global = true)]
     json: Option<PathBuf>,
 }
 
@@ -67,10 +67,6 @@ enum Cmd {
     Worker {
         #[arg(long)]
         memory_limit_bytes: u64,
-        #[arg(long)]
-        time_limit: f64,
-        #[arg(long)]
-        frames: String,
     },
 }
 
@@ -107,12 +103,8 @@ fn main() -> ExitCode {
         verbose: true,
     };
     let report = match cli.command {
-        Some(Cmd::Worker {
-            memory_limit_bytes,
-            time_limit,
-            frames,
-        }) => {
-            let args = weft_fuzz::weft_args(&frames, Some(time_limit));
+        Some(Cmd::Worker { memory_limit_bytes }) => {
+            let args = weft_fuzz::weft_args(&o.frames, Some(o.time_limit));
             return match weft_fuzz::worker_main(memory_limit_bytes, args) {
                 Ok(()) => ExitCode::SUCCESS,
                 Err(e) => {

@@ -231,13 +231,13 @@ struct Worker {
 impl Worker {
     fn start(cfg: &Config) -> std::io::Result<Worker> {
         let mut child = Command::new(&cfg.worker_exe)
-            .arg("worker")
-            .arg("--memory-limit-bytes")
-            .arg(cfg.memory_limit.to_string())
             .arg("--time-limit")
             .arg(cfg.time_limit.to_string())
             .arg("--frames")
             .arg(&cfg.frames)
+            .arg("worker")
+            .arg("--memory-limit-bytes")
+            .arg(cfg.memory_limit.to_string())
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(Stdio::null())

@@ -121,37 +121,57 @@ pub(crate) fn decode_frame(b: &[u8], key: u128, frame: i64) -> Option<(String, &
 }
 
 struct MemoryCache {
-    entries: HashMap<u128, Value>,
+    entries: HashMap<u128, (Value, usize)>,
     order: VecDeque<u128>,
+    bytes: usize,
     hits: u64,
     misses: u64,
+    evicted_for_memory: u64,
 }
+
+/// Below this many bytes a memory cache never asks how much memory is left.
+const QUIET_BYTES: usize = 64 << 20;
 
 impl Compute for MemoryCache {
     fn compute(&mut self, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
         let key = cx.input_hash("in")?;
-        if let Some(v) = self.entries.get(&key) {
+        if let Some((v, _)) = self.entries.get(&key) {
             self.hits += 1;
             cx.set("out", v.clone());
             return Ok(());
         }
         self.misses += 1;
         let v = cx.input("in")?;
-        let cap = cx.params().i64("max_frames")?.max(1) as usize;
-        while self.order.len() >= cap {
-            if let Some(old) = self.order.pop_front() {
-                self.entries.remove(&old);
+        let size = cx.registry().value_bytes(&v);
+        let cap = cx.params().usize("max_frames")?.max(1);
+        // The oldest entries go first: past max_frames, and past a quarter of the memory the
+        // process may still take (a cache never makes a run fail for lack of memory).
+        let budget = if self.bytes + size > QUIET_BYTES {
+            usize::try_from(cx.memory_budget() / 4).unwrap_or(usize::MAX)
+        } else {
+            usize::MAX
+        };
+        while self.order.len() >= cap || (self.bytes + size > budget && !self.order.is_empty()) {
+            if self.order.len() < cap {
+                self.evicted_for_memory += 1;
+            }
+            if let Some(old) = self.order.pop_front()
+                && let Some((_, b)) = self.entries.remove(&old)
+            {
+                self.bytes -= b;
             }
         }
-        self.entries.insert(key, v.clone());
+        self.entries.insert(key, (v.clone(), size));
+        self.bytes += size;
         self.order.push_back(key);
         cx.set("out", v);
         Ok(())
     }
     fn stats_json(&self) -> Option<serde_json::Value> {
-        Some(
-            serde_json::json!({"hits": self.hits, "misses": self.misses, "entries": self.entries.len()}),
-        )
+        Some(serde_json::json!({
+            "hits": self.hits, "misses": self.misses, "entries": self.entries.len(),
+            "bytes": self.bytes, "evicted_for_memory": self.evicted_for_memory,
+        }))
     }
 }
 
@@ -238,15 +258,17 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         .param(
             ParamSpec::int("max_frames", 10_000)
                 .ge(1.0)
-                .doc("entries kept; the oldest is dropped first"),
+                .doc("entries kept; the oldest is dropped first (also when the entries grow past a quarter of the memory left)"),
         )
         .lazy(),
         |_| {
             Ok(Kernel::Compute(Box::new(MemoryCache {
                 entries: HashMap::new(),
                 order: VecDeque::new(),
+                bytes: 0,
                 hits: 0,
                 misses: 0,
+                evicted_for_memory: 0,
             })))
         },
     )?;

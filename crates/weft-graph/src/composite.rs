@@ -464,6 +464,11 @@ impl Step for Stepped {
     fn stats_json(&self) -> Option<serde_json::Value> {
         self.0.report_json()
     }
+    fn state_bytes(&self, state: &Value, registry: &crate::Registry) -> usize {
+        state
+            .get::<Vec<Value>>()
+            .map_or(0, |s| s.iter().map(|v| registry.value_bytes(v)).sum())
+    }
     /// Each output's payload through its port type's encoding; `None` when one has none.
     fn save_state(&self, state: &Value, registry: &crate::Registry) -> Option<Vec<u8>> {
         let s = state.get::<Vec<Value>>()?;

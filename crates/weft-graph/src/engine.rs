@@ -116,7 +116,7 @@ pub(crate) struct Slot {
     pub eff_static: bool,
     pub dirty: bool,
     cache: Option<Cached>,
-    checkpoints: BTreeMap<i64, Value>,
+    checkpoints: crate::checkpoints::Checkpoints,
     ckpt_fps: f64,
     hash: Option<u128>,
     /// Hash of a source value or of what the kernel adds.
@@ -143,7 +143,7 @@ impl Slot {
             eff_static: true,
             dirty: true,
             cache: None,
-            checkpoints: BTreeMap::new(),
+            checkpoints: Default::default(),
             ckpt_fps: 0.0,
             hash: None,
             external: 0,
@@ -179,7 +179,11 @@ pub struct Graph {
     interrupt: Interrupt,
     output_root: Option<std::path::PathBuf>,
     checkpoint_dir: Option<std::path::PathBuf>,
+    warning_sink: Option<WarningSink>,
 }
+
+/// Called with each new warning as it is raised (a command line prints it at once).
+pub type WarningSink = Arc<dyn Fn(&RunWarning) + Send + Sync>;
 
 /// The first non-finite number in a float-valued payload (`float`, `vec3`, `floats`).
 /// Physics types check their own data where they are made.
@@ -221,6 +225,7 @@ impl Graph {
             interrupt: Interrupt::new(),
             output_root: None,
             checkpoint_dir: None,
+            warning_sink: None,
         }
     }
 
@@ -548,11 +553,7 @@ impl Graph {
         }
         // Before the start frame the initial state holds.
         let f = ctx.frame.max(start);
-        let resume = self.slots[n]
-            .checkpoints
-            .range(start..=f)
-            .next_back()
-            .map(|(a, s)| (*a, s.clone()));
+        let resume = self.slots[n].checkpoints.latest_in(start..=f);
         let newer_on_disk =
             self.checkpoint_dir.is_some() && resume.as_ref().is_none_or(|(a, _)| *a < f);
         let from_disk = if newer_on_disk {
@@ -566,7 +567,7 @@ impl Graph {
             None => {
                 let mut cx = self.cx(n, ctx.with_frame(start));
                 let s = k.init(&mut cx).map_err(|e| (e, start))?;
-                self.slots[n].checkpoints.insert(start, s.clone());
+                self.keep(n, k, start, &s, start);
                 (start, s)
             }
         };
@@ -577,13 +578,21 @@ impl Graph {
             at += 1;
             let mut cx = self.cx(n, ctx.with_frame(at));
             state = k.step(&state, &mut cx).map_err(|e| (e, at))?;
-            self.slots[n].checkpoints.insert(at, state.clone());
+            self.keep(n, k, at, &state, start);
             self.slots[n].stats.steps += 1;
             self.save_to_disk(n, k, at, &state, ctx.fps);
         }
         let mut cx = self.cx(n, ctx);
         k.outputs(&state, &mut cx).map_err(|e| (e, ctx.frame))?;
         Ok(cx.outputs)
+    }
+
+    /// Keeps a state in memory (within the checkpoints' budget).
+    fn keep(&mut self, n: usize, k: &dyn crate::node::Step, frame: i64, state: &Value, start: i64) {
+        let bytes = k.state_bytes(state, &self.registry);
+        self.slots[n]
+            .checkpoints
+            .insert(frame, state.clone(), bytes, start);
     }
 
     /// The key a node's disk checkpoints carry: its structure (type, parameters, kernel,
@@ -655,7 +664,7 @@ impl Graph {
                 None => {
                     let mut cx = self.cx(n, ctx.with_frame(start));
                     let s = k.init(&mut cx).map_err(|e| (e, start))?;
-                    self.slots[n].checkpoints.insert(start, s.clone());
+                    self.keep(n, k, start, &s, start);
                     s
                 }
             };
@@ -663,7 +672,7 @@ impl Graph {
             let state = k
                 .load_state(payload, &initial, &mut cx)
                 .map_err(|e| (e, frame))?;
-            self.slots[n].checkpoints.insert(frame, state.clone());
+            self.keep(n, k, frame, &state, start);
             self.slots[n].stats.restored += 1;
             return Ok(Some((frame, state)));
         }
@@ -948,8 +957,17 @@ impl Graph {
             message,
         };
         if !self.warnings.contains(&w) {
+            if let Some(sink) = &self.warning_sink {
+                sink(&w);
+            }
             self.warnings.push(w);
         }
+    }
+
+    /// Hands every new warning to `sink` as it is raised (they are still kept for
+    /// [`Graph::take_warnings`]): a long run's user learns of a problem when it happens.
+    pub fn set_warning_sink(&mut self, sink: Option<WarningSink>) {
+        self.warning_sink = sink;
     }
 
     /// Warnings raised since the last call.
@@ -998,7 +1016,7 @@ impl Graph {
     pub fn checkpoint_frames(&self, id: &str) -> Vec<i64> {
         self.ids
             .get(id)
-            .map(|&n| self.slots[n].checkpoints.keys().copied().collect())
+            .map(|&n| self.slots[n].checkpoints.frames())
             .unwrap_or_default()
     }
 
@@ -1006,7 +1024,7 @@ impl Graph {
     pub fn drop_checkpoints_after(&mut self, id: &str, frame: i64) {
         if let Some(&n) = self.ids.get(id) {
             let s = &mut self.slots[n];
-            s.checkpoints.retain(|&f, _| f <= frame);
+            s.checkpoints.retain_up_to(frame);
             s.cache = None;
             // Downstream caches stay correct: the states that remain are unchanged.
         }

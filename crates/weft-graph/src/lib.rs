@@ -32,6 +32,7 @@
 #![warn(missing_docs)]
 
 mod cache;
+mod checkpoints;
 pub mod codec;
 mod compile;
 mod composite;
@@ -51,7 +52,7 @@ mod value;
 pub use cache::{atomic_write, atomic_write_with};
 pub use compile::{library_specs, load_path, load_str};
 pub use diag::{Diagnostic, LoadError, Severity};
-pub use engine::{Context, Graph, NodeReport, NodeStats, RunWarning};
+pub use engine::{Context, Graph, NodeReport, NodeStats, RunWarning, WarningSink};
 pub use file::{FORMAT, SUPPORTED_VERSIONS};
 pub use interrupt::Interrupt;
 pub use node::{Compute, EvalCx, EvalError, Kernel, NodeError, Step};

@@ -101,6 +101,11 @@ pub trait Step: Send {
     fn stats_json(&self) -> Option<serde_json::Value> {
         None
     }
+    /// About how many bytes `state` holds, for the memory budget of checkpoints (thinned
+    /// when they grow past it); 0: small.
+    fn state_bytes(&self, _state: &Value, _registry: &crate::Registry) -> usize {
+        0
+    }
     /// The bytes of `state` for a disk checkpoint ([`crate::Graph::set_checkpoint_dir`]),
     /// restored bit for bit by [`Step::load_state`]; `None`: this node keeps no disk
     /// checkpoints (a resumed run recomputes it from the start frame).

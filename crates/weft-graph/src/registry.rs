@@ -214,6 +214,13 @@ impl Registry {
         Ok(())
     }
 
+    /// About how many bytes `v` holds: its port type's estimate, else a small constant.
+    pub fn value_bytes(&self, v: &crate::Value) -> usize {
+        self.port_type_by_id(v.payload_type_id())
+            .and_then(|t| t.size)
+            .map_or(64, |f| f(v))
+    }
+
     /// A node type by name.
     pub fn node_type(&self, name: &str) -> Option<&NodeType> {
         self.types.get(name)

@@ -110,6 +110,8 @@ pub type ToJson = fn(&Value) -> Option<serde_json::Value>;
 pub type Encode = fn(&Value) -> Option<Vec<u8>>;
 /// Decodes bytes written by the matching `Encode`.
 pub type Decode = fn(&[u8]) -> Result<Value, String>;
+/// About how many bytes a payload holds (memory budgets of caches and checkpoints).
+pub type Size = fn(&Value) -> usize;
 /// Decodes bytes written by the matching `Encode` for a payload that shares parts it does
 /// not store (a compiled scene behind an `Arc`): `template` is the same node's value at its
 /// start frame, `inputs` its inputs (by port name) at the frame being restored.
@@ -137,6 +139,8 @@ pub struct PortType {
     /// Bytes + the start frame's value → value (disk checkpoints of stateful composites,
     /// for payloads that `decode` alone cannot rebuild).
     pub restore: Option<Restore>,
+    /// About how many bytes a payload holds; `None`: small (the payload's own size).
+    pub size: Option<Size>,
 }
 
 impl PortType {
@@ -152,7 +156,14 @@ impl PortType {
             encode: None,
             decode: None,
             restore: None,
+            size: None,
         }
+    }
+
+    /// Adds a size estimate, which caches and checkpoints count against memory.
+    pub fn with_size(mut self, size: Size) -> Self {
+        self.size = Some(size);
+        self
     }
 
     /// Adds a JSON form.

@@ -80,6 +80,26 @@ pub struct SceneElement {
 }
 
 impl SceneElement {
+    /// About how many bytes the element's geometry and channels hold (for memory budgets;
+    /// data shared with other elements is counted in each).
+    pub fn heap_bytes(&self) -> usize {
+        let geometry = match &*self.geometry {
+            Geometry::None => 0,
+            Geometry::Mesh(m) => 24 * m.positions.len() + 12 * m.triangles.len(),
+            Geometry::Curves(c) => 24 * c.positions.len() + 4 * c.offsets.len(),
+            Geometry::Points(p) => 24 * p.len(),
+        };
+        let channels: usize = self
+            .channels
+            .values()
+            .map(|c| match c {
+                Channel::Float(v) => 8 * v.len(),
+                Channel::Vec3(v) => 24 * v.len(),
+            })
+            .sum();
+        geometry + channels + 256
+    }
+
     /// A new element with geometry, no channels and no SECs.
     pub fn new(name: &str, kind: ElementKind, geometry: Geometry) -> Self {
         SceneElement {

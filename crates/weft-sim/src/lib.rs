@@ -15,6 +15,7 @@ mod behavior;
 mod build;
 mod coupled;
 mod error;
+pub mod estimate;
 mod fluid;
 mod stepper;
 pub mod verify;

@@ -86,14 +86,15 @@ impl SolidStepper {
     /// A stepper for `compiled`.
     pub fn new(compiled: Arc<Compiled>, settings: StepperSettings) -> Result<Self, SimError> {
         let integrator =
-            Integrator::new_within(&compiled.system, settings.max_bytes).map_err(|e| {
-                SimError::StepFailed {
+            Integrator::new_within(&compiled.system, settings.max_bytes).map_err(|e| match e {
+                StepError::TooLarge { .. } => SimError::TooLarge(e.to_string()),
+                e => SimError::StepFailed {
                     frame: 0,
                     substep: 0,
                     substeps: settings.substeps,
                     retries: 0,
-                    message: e.to_string(),
-                }
+                    message: format!("setting up the solver: {e}"),
+                },
             })?;
         let targets = compiled.state.x.clone();
         Ok(SolidStepper {

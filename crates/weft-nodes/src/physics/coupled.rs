@@ -199,6 +199,19 @@ fn setup(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     for w in &compiled.warnings {
         cx.warn(w.clone());
     }
+    // About seven coupling iterations a frame, each a (warm-started) solid solve and a
+    // pressure solve: see weft_sim::estimate.
+    let cells = compiled.fluid.as_ref().map_or(0, |f| f.domain.cell_count());
+    let per_frame = 7.0
+        * (0.5 * weft_sim::estimate::solid_step_seconds(&compiled, Method::Newton)
+            + weft_sim::estimate::pressure_solve_seconds(cells));
+    if per_frame > weft_sim::estimate::WARN_SECONDS_PER_FRAME {
+        cx.warn(format!(
+            "a rough cost model puts each coupled frame at about {} ({} simulated vertices, {cells} fluid cells); Ctrl-C stops the run and keeps the frames done, --time-limit bounds it",
+            weft_sim::estimate::human_seconds(per_frame),
+            compiled.state.x.len(),
+        ));
+    }
     let fluid = compiled.fluid.as_ref().map(|f| Arc::new(f.initial_grid()));
     let grid = compiled.fluid.as_ref().map(|f| {
         let d = &f.domain;
@@ -608,7 +621,13 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                 })
             },
         )
-        .with_restore(encode_state, restore_state),
+        .with_restore(encode_state, restore_state)
+        .with_size(|v| {
+            v.get::<CoupledState>().map_or(0, |s| {
+                48 * s.sim.solid.x.len()
+                    + s.fluid.as_ref().map_or(0, |g| 104 * g.domain.cell_count())
+            })
+        }),
     )?;
     r.register_port_type(PortType::of::<StepStart>(
         "coupled_step",

@@ -85,9 +85,22 @@ impl weft_graph::Compute for UsdOut {
             .filter(|e| matches!(*e.geometry, Geometry::Mesh(_) | Geometry::Curves(_)))
             .map(|e| e.geometry.positions())
             .collect();
+        // Every frame's points stay in memory (f32) until the run ends.
+        let frames = u
+            .frame_range()
+            .map_or(0, |(a, b)| (b - a + 1).max(0) as u64)
+            + 1;
+        let points: u64 = positions.iter().map(|p| p.len() as u64).sum();
+        weft_graph::memory::check_within(
+            weft_graph::memory::product(&[frames, points, 12]),
+            cx.memory_budget(),
+            || format!("{frames} frames of {points} points in one USD file"),
+            "write fewer frames, or an OBJ sequence (output.obj), which holds one frame at a time",
+        )?;
         u.add_frame(cx.frame(), &positions)
             .map_err(|e| fail(&path, e))?;
-        weft_graph::atomic_write(&path, u.to_string().as_bytes()).map_err(|e| fail(&path, e))?;
+        weft_graph::atomic_write_with(&path, |w| u.write(&mut &mut *w))
+            .map_err(|e| fail(&path, e))?;
         cx.set("path", path.display().to_string());
         Ok(())
     }

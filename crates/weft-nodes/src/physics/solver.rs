@@ -104,6 +104,18 @@ impl Step for SolidSolver {
         self.compiled = Some(compiled.clone());
         self.frames.clear();
         let params = cx.params().clone();
+        let st = settings(&params, 0)?;
+        let per_frame = weft_sim::estimate::solid_step_seconds(&compiled, st.solver.method)
+            * st.substeps as f64;
+        if per_frame > weft_sim::estimate::WARN_SECONDS_PER_FRAME {
+            cx.warn(format!(
+                "a rough cost model puts each frame at about {} ({} simulated vertices, {} substeps of {:?}); Ctrl-C stops the run and keeps the frames done, --time-limit bounds it",
+                weft_sim::estimate::human_seconds(per_frame),
+                compiled.state.x.len(),
+                st.substeps,
+                st.solver.method,
+            ));
+        }
         let stepper = self.stepper(&compiled, &params, cx.interrupt())?;
         let sim = stepper.initial_state(&scene);
         let out = stepper.scene_at(&scene, &sim);
@@ -154,6 +166,12 @@ impl Step for SolidSolver {
             .ok_or_else(|| NodeError::Failed("the state is not a solver.solid state".into()))?;
         cx.set("scene", s.scene.clone());
         Ok(())
+    }
+
+    fn state_bytes(&self, state: &Value, _: &weft_graph::Registry) -> usize {
+        state.get::<SolverState>().map_or(0, |s| {
+            48 * s.sim.solid.x.len() + super::types::scene_bytes(&s.scene)
+        })
     }
 
     fn save_state(&self, state: &Value, _: &weft_graph::Registry) -> Option<Vec<u8>> {

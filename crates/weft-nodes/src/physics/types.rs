@@ -21,35 +21,50 @@ fn summary(e: &SceneElement) -> serde_json::Value {
     })
 }
 
+/// About how many bytes a scene value holds.
+pub(crate) fn scene_bytes(v: &Value) -> usize {
+    v.get::<Scene>()
+        .map_or(0, |s| s.iter().map(SceneElement::heap_bytes).sum())
+}
+
 pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
     r.register_port_type(PortType::of::<Mesh>("mesh", "a triangle mesh (positions in m, triangles)").with_json(
         |_| Err("a mesh cannot be written inline; use geo.grid, geo.obj, …".into()),
         |v| v.get::<Mesh>().map(|m| serde_json::json!({"vertices": m.positions.len(), "triangles": m.triangles.len()})),
-    ))?;
+    ).with_size(|v| v.get::<Mesh>().map_or(0, |m| 24 * m.positions.len() + 12 * m.triangles.len())))?;
     r.register_port_type(
-        PortType::of::<Curves>("curves", "polylines (hair strands)").with_json(
-            |_| Err("curves cannot be written inline; use geo.strands".into()),
-            |v| {
+        PortType::of::<Curves>("curves", "polylines (hair strands)")
+            .with_json(
+                |_| Err("curves cannot be written inline; use geo.strands".into()),
+                |v| {
+                    v.get::<Curves>().map(
+                        |c| serde_json::json!({"curves": c.len(), "vertices": c.positions.len()}),
+                    )
+                },
+            )
+            .with_size(|v| {
                 v.get::<Curves>()
-                    .map(|c| serde_json::json!({"curves": c.len(), "vertices": c.positions.len()}))
-            },
-        ),
+                    .map_or(0, |c| 24 * c.positions.len() + 4 * c.offsets.len())
+            }),
     )?;
     r.register_port_type(
         PortType::of::<SceneElement>("element", "a Scene Element: geometry, channels and SECs")
             .with_json(
                 |_| Err("an element cannot be written inline; use a convert.* node".into()),
                 |v| v.get::<SceneElement>().map(summary),
-            ),
+            )
+            .with_size(|v| v.get::<SceneElement>().map_or(0, SceneElement::heap_bytes)),
     )?;
     r.register_port_type(
-        PortType::of::<Scene>("scene", "the elements of a scene at one frame").with_json(
-            |_| Err("a scene cannot be written inline".into()),
-            |v| {
-                v.get::<Scene>()
-                    .map(|s| serde_json::json!(s.iter().map(summary).collect::<Vec<_>>()))
-            },
-        ),
+        PortType::of::<Scene>("scene", "the elements of a scene at one frame")
+            .with_json(
+                |_| Err("a scene cannot be written inline".into()),
+                |v| {
+                    v.get::<Scene>()
+                        .map(|s| serde_json::json!(s.iter().map(summary).collect::<Vec<_>>()))
+                },
+            )
+            .with_size(scene_bytes),
     )?;
     r.register_port_type(PortType::of::<BehaviorValue>(
         "behavior",
