@@ -148,26 +148,36 @@ pub fn category(stderr: &str) -> String {
         .lines()
         .find(|l| l.contains("error: "))
         .unwrap_or_else(|| stderr.lines().next().unwrap_or(""));
-    let mut msg = line.rsplit_once("error: ").map_or(line, |(_, m)| m).trim();
-    while let Some(rest) = ["node '", "param '", "input '", "output '", "subgraph '"]
-        .iter()
-        .find_map(|p| msg.strip_prefix(p))
-        .and_then(|r| r.split_once("': ").map(|(_, m)| m))
-        .or_else(|| {
-            msg.strip_prefix("node '")
-                .and_then(|r| r.split_once(": ").map(|(_, m)| m))
-        })
-    {
-        msg = rest.trim();
+    let mut msg = line.split_once("error: ").map_or(line, |(_, m)| m).trim();
+    // Strip the `node 'n': `, `node 'n' at frame F: `, `param 'p': `, `params: ` prefixes.
+    loop {
+        let next = ["node '", "param '", "input '", "output '", "subgraph '"]
+            .iter()
+            .find_map(|p| msg.strip_prefix(p))
+            .and_then(|r| r.split_once('\''))
+            .and_then(|(_, after)| {
+                after.strip_prefix(": ").or_else(|| {
+                    after
+                        .strip_prefix(" at frame ")
+                        .and_then(|r| r.split_once(": ").map(|(_, m)| m))
+                })
+            })
+            .or_else(|| msg.strip_prefix("params: "));
+        match next {
+            Some(rest) => msg = rest.trim(),
+            None => break,
+        }
     }
     let l = msg.to_lowercase();
-    const KINDS: [(&str, &str); 44] = [
+    const KINDS: &[(&str, &str)] = &[
         ("invalid json", "invalid JSON"),
         ("duplicate", "duplicate key or id"),
         ("unknown node type", "unknown node type"),
         ("has no such parameter", "unknown parameter"),
         ("missing required parameter", "missing parameter"),
         ("missing required input", "missing input"),
+        ("missing '", "missing field"),
+        ("missing \"", "missing field"),
         ("type mismatch", "type mismatch"),
         ("cycle", "cycle"),
         (
@@ -179,6 +189,7 @@ pub fn category(stderr: &str) -> String {
         ("expected \"node.port\"", "malformed connection"),
         ("takes one connection", "list on a single input"),
         ("unknown field", "unknown field"),
+        ("node ids may use only", "bad node id"),
         ("format", "format or version"),
         ("version", "format or version"),
         ("the file declares no", "no outputs"),
@@ -189,18 +200,29 @@ pub fn category(stderr: &str) -> String {
         ("interrupted", "interrupted"),
         ("gib", "memory estimate refused"),
         ("mib", "memory estimate refused"),
+        ("can index", "too many vertices to index"),
         ("non-finite", "non-finite value"),
+        ("not finite", "non-finite value"),
+        ("finite number", "non-finite value"),
+        ("formula gave", "non-finite value"),
         ("nan", "non-finite value"),
         ("converge", "did not converge"),
         ("out of range", "index out of range"),
+        ("not a vertex index", "bad vertex index"),
         ("cannot read", "cannot read a file"),
-        ("obj", "bad OBJ file"),
+        ("obj file", "bad OBJ file"),
         ("cannot write", "cannot write a file"),
         ("outside", "path outside the output directory"),
+        ("climbs out", "path outside the output directory"),
+        ("zero rest", "degenerate geometry"),
         ("degenerate", "degenerate geometry"),
+        ("has no mass", "no material Behavior for an element"),
         ("the formula", "bad expression"),
+        ("cannot parse", "bad expression"),
+        ("unknown variable", "bad expression"),
         ("expression", "bad expression"),
         ("must be", "parameter out of range"),
+        ("must exceed", "parameter out of range"),
         ("expected", "parameter of the wrong kind"),
         ("unique", "duplicate element name"),
         ("attachment", "bad attachment"),
@@ -544,4 +566,22 @@ pub fn case_dirs(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
     }
     v.sort();
     Ok(v)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::category;
+
+    #[test]
+    fn errors_are_counted_by_what_they_report() {
+        let load = "g.json: 2 errors in graph file\n  g.json: line 8, column 78: error: node 'grid': param 'nx': expected an integer, got \"a\"\n";
+        assert_eq!(category(load), "parameter of the wrong kind");
+        let port = "  g.json: line 3, column 1: error: node 'c': input 'x': node 'probe' (coupled.probe) has no output 'y' (outputs: velocity, max_speed)";
+        assert_eq!(category(port), "unknown output port");
+        let run = "error: node 'solve' at frame 1: time limit of 2 s reached: stopped at frame 1";
+        assert_eq!(category(run), "time limit reached");
+        let factory = "  g.json: line 9, column 5: error: node 'pins': params: param 'vertices': -1 is not a vertex index";
+        assert_eq!(category(factory), "bad vertex index");
+        assert_eq!(category(""), "other: (no message)");
+    }
 }

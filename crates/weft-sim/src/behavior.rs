@@ -166,7 +166,7 @@ impl Behavior for DiscreteShellMaterial {
                 let gv = [t[0] + off, t[1] + off, t[2] + off];
                 let m = Membrane::new(gv, r, warp, mat).map_err(|err| SimError::BadGeometry {
                     element: name.into(),
-                    message: format!("triangle {ti} {t:?} has zero rest area ({:e} m²)", err.area),
+                    message: format!("triangle {ti} {t:?} {}", err.reason()),
                 })?;
                 for &v in &gv {
                     b.add_mass(v as usize, m.area * density.area_density / 3.0);

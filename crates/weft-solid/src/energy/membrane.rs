@@ -73,14 +73,31 @@ pub struct Membrane {
     pub material: MembraneMaterial,
 }
 
-/// Why a rest triangle cannot carry a membrane.
+/// Why a rest triangle cannot carry a membrane: no area, or so little for its size (below
+/// 1e-12 of its longest edge squared) that its shape is lost to rounding.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("triangle {v:?} has zero rest area ({area:e} m²)")]
+#[error("triangle {v:?} {}", self.reason())]
 pub struct DegenerateTriangle {
     /// Its vertices.
     pub v: [u32; 3],
     /// Its rest area.
     pub area: f64,
+    /// Its longest rest edge [m].
+    pub longest: f64,
+}
+
+impl DegenerateTriangle {
+    /// What is wrong, in words (without the vertices).
+    pub fn reason(&self) -> String {
+        let (area, longest) = (self.area, self.longest);
+        if area > 0.0 && area.is_finite() {
+            format!(
+                "is too thin to simulate: rest area {area:e} m² for a longest edge of {longest:e} m"
+            )
+        } else {
+            format!("has zero rest area ({area:e} m²)")
+        }
+    }
 }
 
 impl Membrane {
@@ -96,8 +113,9 @@ impl Membrane {
         let n = e1.cross(&e2);
         let area = 0.5 * n.norm();
         let scale = e1.norm_squared().max(e2.norm_squared());
+        let longest = scale.sqrt();
         if area.is_nan() || area <= 1e-12 * scale || !area.is_finite() {
-            return Err(DegenerateTriangle { v, area });
+            return Err(DegenerateTriangle { v, area, longest });
         }
         let n = n.normalize();
         let mut u = warp - n * n.dot(&warp);
@@ -109,7 +127,9 @@ impl Membrane {
         let u = u.normalize();
         let t = n.cross(&u);
         let dm = Matrix2::new(e1.dot(&u), e2.dot(&u), e1.dot(&t), e2.dot(&t));
-        let b = dm.try_inverse().ok_or(DegenerateTriangle { v, area })?;
+        let b = dm
+            .try_inverse()
+            .ok_or(DegenerateTriangle { v, area, longest })?;
         // F = [x1 − x0, x2 − x0] B  ⇒  w₁ = row 0 of B, w₂ = row 1, w₀ = −(w₁ + w₂).
         let w1 = Vector2::new(b[(0, 0)], b[(0, 1)]);
         let w2 = Vector2::new(b[(1, 0)], b[(1, 1)]);
