@@ -596,10 +596,12 @@ impl Graph {
     }
 
     /// The key a node's disk checkpoints carry: its structure (type, parameters, kernel,
-    /// everything upstream) and the frame rate.
+    /// everything upstream), the frame rate, and Weft's version (another version's solver
+    /// may step differently, so its states are recomputed, not restored).
     fn checkpoint_key(&mut self, n: usize, fps: f64) -> u128 {
         let mut h = Xxh3::new();
         h.update(b"weft-checkpoint-1");
+        h.update(env!("CARGO_PKG_VERSION").as_bytes());
         h.update(&self.structural_hash(n).to_le_bytes());
         h.update(&fps.to_le_bytes());
         h.digest128()
