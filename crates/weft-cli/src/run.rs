@@ -76,6 +76,10 @@ fn install_ctrl_c(i: &weft_graph::Interrupt) {
     });
 }
 
+/// The largest frame number (a start frame's range too): beyond it frame arithmetic could
+/// overflow.
+const MAX_FRAME: i64 = 1_000_000_000;
+
 /// Parses `A..B` (inclusive) or `F`.
 pub fn parse_frames(s: &str) -> Result<Vec<i64>, String> {
     let bad = || format!("--frames expects A..B or a frame number, got {s:?}");
@@ -83,6 +87,9 @@ pub fn parse_frames(s: &str) -> Result<Vec<i64>, String> {
         Some((a, b)) => {
             let a: i64 = a.trim().parse().map_err(|_| bad())?;
             let b: i64 = b.trim().parse().map_err(|_| bad())?;
+            if ![a, b].iter().all(|f| (-MAX_FRAME..=MAX_FRAME).contains(f)) {
+                return Err(format!("--frames {s}: frames lie within ±{MAX_FRAME}"));
+            }
             if b < a {
                 return Err(format!(
                     "--frames {s}: the last frame comes before the first"
@@ -93,7 +100,13 @@ pub fn parse_frames(s: &str) -> Result<Vec<i64>, String> {
             }
             Ok((a..=b).collect())
         }
-        None => Ok(vec![s.trim().parse().map_err(|_| bad())?]),
+        None => {
+            let f: i64 = s.trim().parse().map_err(|_| bad())?;
+            if !(-MAX_FRAME..=MAX_FRAME).contains(&f) {
+                return Err(format!("--frames {s}: frames lie within ±{MAX_FRAME}"));
+            }
+            Ok(vec![f])
+        }
     }
 }
 
@@ -449,5 +462,10 @@ mod tests {
                 .contains("before the first")
         );
         assert!(parse_frames("a..b").unwrap_err().contains("expects A..B"));
+        assert!(
+            parse_frames("-9223372036854775808..9223372036854775807")
+                .unwrap_err()
+                .contains("within")
+        );
     }
 }

@@ -269,6 +269,8 @@ impl NodeSpec {
         if t == TimeClass::Stateful && self.param_spec("start_frame").is_none() {
             self.params.push(
                 ParamSpec::int("start_frame", 0)
+                    .ge(-1e9)
+                    .le(1e9)
                     .doc("frame holding the initial state; earlier frames hold it too"),
             );
         }

@@ -181,7 +181,8 @@ fn parse_obj(text: &str, path: &Path) -> Result<Mesh, ObjError> {
                         }
                         i if i > 0 => i - 1,
                         // Relative: -1 is the last vertex defined so far.
-                        i => positions.len() as i64 + i,
+                        // (saturating: a hugely negative index is reported out of range)
+                        i => (positions.len() as i64).saturating_add(i),
                     };
                     face.push(PendingIndex {
                         resolved,
@@ -455,6 +456,11 @@ mod tests {
             (
                 "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 99999999999999999999\n",
                 "bad vertex index",
+            ),
+            // The most negative relative index: out of range, not an overflow.
+            (
+                "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -9223372036854775808\n",
+                "refers to vertex",
             ),
         ];
         for (text, expected) in cases {
