@@ -6,18 +6,8 @@
 //! command line or a graph file is invalid.
 #![warn(missing_docs)]
 
-mod bench;
-mod bench_accuracy;
-mod bench_convergence;
-mod bench_coupling;
-mod bench_fluid;
-mod bench_solid;
-mod charts;
 mod nodes;
 mod run;
-mod scenes_coupled;
-mod scenes_resolution;
-mod sweep;
 
 use clap::{Parser, Subcommand};
 use std::ffi::OsString;
@@ -55,7 +45,7 @@ enum Command {
         filter: Option<String>,
     },
     /// Run a benchmark suite.
-    Bench(bench::BenchArgs),
+    Bench(weft_bench::BenchArgs),
 }
 
 /// Runs the command line `args` (the first item is the program name).
@@ -99,7 +89,7 @@ fn dispatch(command: Command) -> ExitCode {
             print!("{}", nodes::render(&registry, json, filter.as_deref()));
             ExitCode::SUCCESS
         }
-        Command::Bench(a) => bench::run(&registry, a),
+        Command::Bench(a) => weft_bench::run(&registry, a),
     }
 }
 

@@ -396,10 +396,34 @@ impl MacGrid {
         [0, 1, 2].map(|a| self.sample(a, p))
     }
 
+    /// The pressure [Pa] of the cell that holds `p` (clamped into the domain, wrapped on
+    /// periodic axes): pressures live at cell centres, so a probe at a centre reads its cell.
+    pub fn pressure_at(&self, p: [f64; 3]) -> f64 {
+        let dom = &self.domain;
+        let idx: [usize; 3] = std::array::from_fn(|b| {
+            let x = ((p[b] - dom.origin[b]) / dom.dx).floor();
+            let n = dom.cells[b] as f64;
+            let x = if dom.boundaries.is_periodic(b) {
+                x.rem_euclid(n)
+            } else {
+                x.clamp(0.0, n - 1.0)
+            };
+            if x.is_finite() { x as usize } else { 0 }.min(dom.cells[b] - 1)
+        });
+        self.pressure[dom.cell(idx[0], idx[1], idx[2])]
+    }
+
     /// Kinetic energy per unit density, ½ Σ u² dx³ over distinct faces [m⁵/s²].
     pub fn kinetic_energy(&self) -> f64 {
-        let dom = &self.domain;
         let mut e = 0.0;
+        self.for_distinct_faces(|a, f| e += 0.5 * self.vel[a][f] * self.vel[a][f]);
+        e * self.domain.dx.powi(3)
+    }
+
+    /// Calls `f(axis, face)` once for every distinct face (a periodic axis's last face is
+    /// its first face's copy and is skipped).
+    fn for_distinct_faces(&self, mut f: impl FnMut(usize, usize)) {
+        let dom = &self.domain;
         for a in 0..3 {
             let d = dom.face_dims(a);
             let last = if dom.boundaries.is_periodic(a) {
@@ -410,16 +434,35 @@ impl MacGrid {
             for k in 0..d[2] {
                 for j in 0..d[1] {
                     for i in 0..d[0] {
-                        if [i, j, k][a] >= last {
-                            continue;
+                        if [i, j, k][a] < last {
+                            f(a, dom.face(a, i, j, k));
                         }
-                        let u = self.vel[a][dom.face(a, i, j, k)];
-                        e += 0.5 * u * u;
                     }
                 }
             }
         }
-        e * dom.dx.powi(3)
+    }
+
+    /// The fluid's momentum Σ ρ α u Δx³ over distinct faces [kg·m/s] for density `rho`.
+    pub fn momentum(&self, rho: f64) -> [f64; 3] {
+        let mut m = [0.0; 3];
+        self.for_distinct_faces(|a, f| m[a] += self.alpha[a][f] * self.vel[a][f]);
+        m.map(|x| rho * x * self.domain.dx.powi(3))
+    }
+
+    /// The momentum the fluid gained from `before` to `self` with `self`'s fluid fractions,
+    /// Σ ρ α (u − u_before) Δx³ [kg·m/s]: with `before` a step's advected velocity u*, what
+    /// the coupling (drag, pressure) gave the fluid, which the solids' momentum change must
+    /// balance. Zero unless both grids share a domain.
+    pub fn momentum_gain(&self, before: &MacGrid, rho: f64) -> [f64; 3] {
+        let mut m = [0.0; 3];
+        if before.domain != self.domain {
+            return m;
+        }
+        self.for_distinct_faces(|a, f| {
+            m[a] += self.alpha[a][f] * (self.vel[a][f] - before.vel[a][f]);
+        });
+        m.map(|x| rho * x * self.domain.dx.powi(3))
     }
 }
 

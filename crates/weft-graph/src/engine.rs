@@ -780,41 +780,55 @@ impl Graph {
         param: &str,
         value: serde_json::Value,
     ) -> Result<(), Box<Diagnostic>> {
+        self.set_params(node, &[(param, value)])
+    }
+
+    /// Sets several parameters of one node at once: each is checked, then the node's factory
+    /// runs once on all of them, so a combination that is only valid together (both sides of
+    /// a periodic axis) can be made. On any error nothing changes.
+    pub fn set_params(
+        &mut self,
+        node: &str,
+        values: &[(&str, serde_json::Value)],
+    ) -> Result<(), Box<Diagnostic>> {
         let &n = self.ids.get(node).ok_or_else(|| {
             Diagnostic::error(vec![], "no such node")
                 .node(node)
                 .help(nearest(node, self.ids.keys().map(|s| s.as_str())))
         })?;
         let spec = self.slots[n].spec.clone();
-        let ps = spec.param_spec(param).ok_or_else(|| {
-            Diagnostic::error(vec![], "no such parameter")
-                .node(node)
-                .field(format!("param '{param}'"))
-                .help(nearest(param, spec.params.iter().map(|p| p.name.as_str())))
-        })?;
-        if spec
-            .outputs
-            .iter()
-            .any(|o| o.ty == crate::spec::TypeRef::FromParam(param.to_string()))
-        {
-            return Err(Box::new(
-                Diagnostic::error(vec![], "sets an output's type, so it can only be given in the graph file (connections were type-checked against it at load)")
-                    .node(node)
-                    .field(format!("param '{param}'")),
-            ));
-        }
-        let v = check_param(ps, &value).map_err(|m| {
-            Diagnostic::error(vec![], m)
-                .node(node)
-                .field(format!("param '{param}'"))
-        })?;
         let mut params = (*self.slots[n].params).clone();
-        params.set(param, v);
-        if let Some(f) = self.slots[n].factory.clone() {
-            let k = f(&params).map_err(|m| {
+        for (param, value) in values {
+            let ps = spec.param_spec(param).ok_or_else(|| {
+                Diagnostic::error(vec![], "no such parameter")
+                    .node(node)
+                    .field(format!("param '{param}'"))
+                    .help(nearest(param, spec.params.iter().map(|p| p.name.as_str())))
+            })?;
+            if spec
+                .outputs
+                .iter()
+                .any(|o| o.ty == crate::spec::TypeRef::FromParam(param.to_string()))
+            {
+                return Err(Box::new(
+                    Diagnostic::error(vec![], "sets an output's type, so it can only be given in the graph file (connections were type-checked against it at load)")
+                        .node(node)
+                        .field(format!("param '{param}'")),
+                ));
+            }
+            let v = check_param(ps, value).map_err(|m| {
                 Diagnostic::error(vec![], m)
                     .node(node)
                     .field(format!("param '{param}'"))
+            })?;
+            params.set(param, v);
+        }
+        if let Some(f) = self.slots[n].factory.clone() {
+            let names: Vec<&str> = values.iter().map(|(p, _)| *p).collect();
+            let k = f(&params).map_err(|m| {
+                Diagnostic::error(vec![], m)
+                    .node(node)
+                    .field(format!("param '{}'", names.join("', '")))
             })?;
             self.slots[n].external = k.kernel_hash();
             self.slots[n].kernel = Some(k);

@@ -164,8 +164,29 @@ fn cgroup_room() -> Option<u64> {
 }
 
 /// What this process may still allocate (see the module doc); 16 GiB when the system says
-/// nothing.
+/// nothing. Measured at most every quarter second (reading five /proc and /sys files costs
+/// tens of microseconds, and a coupling iteration asks twice): memory changes slower than
+/// that, and these are estimates.
 pub fn available() -> u64 {
+    use std::sync::Mutex;
+    use std::time::{Duration, Instant};
+    static LAST: Mutex<Option<(Instant, u64)>> = Mutex::new(None);
+    let now = Instant::now();
+    if let Ok(mut last) = LAST.lock() {
+        if let Some((at, v)) = *last
+            && now.duration_since(at) < Duration::from_millis(250)
+        {
+            return v;
+        }
+        let v = measure();
+        *last = Some((now, v));
+        return v;
+    }
+    measure()
+}
+
+/// [`available`], measured now.
+pub fn measure() -> u64 {
     let env = std::env::var("WEFT_MEMORY_LIMIT")
         .ok()
         .and_then(|s| parse_size(&s));

@@ -17,6 +17,7 @@ mod coupled;
 mod error;
 pub mod estimate;
 mod fluid;
+mod relaxation;
 mod stepper;
 pub mod verify;
 
@@ -26,9 +27,10 @@ pub use behavior::{
 };
 pub use build::{Compiled, Pin, SYSTEM_BYTES_PER_VERTEX, SystemBuilder, compile, compile_within};
 pub use coupled::{
-    CoupledError, CoupledSettings, CoupledStats, CoupledStepper, Coupling, DragElement, DragShape,
-    Exchange, Predicted, Relaxation, RelaxationMethod, fluid_change, relax, velocity_change,
+    CoupledError, CoupledSettings, CoupledStepper, Coupling, DragElement, DragShape, Exchange,
+    Predicted,
 };
 pub use error::SimError;
 pub use fluid::FluidSpec;
+pub use relaxation::{Relaxation, RelaxationMethod, fluid_change, relax, velocity_change};
 pub use stepper::{FrameStats, SimState, SolidStepper, StepperSettings};

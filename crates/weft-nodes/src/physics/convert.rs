@@ -62,6 +62,17 @@ fn with_rest(cx: &mut EvalCx<'_>, mut e: SceneElement) -> Result<SceneElement, N
     Ok(e)
 }
 
+/// Sets the `velocity` channel (the solvers' initial velocity) from the `velocity` parameter,
+/// unless it is zero (no channel: at rest).
+fn with_velocity(cx: &EvalCx<'_>, mut e: SceneElement) -> Result<SceneElement, NodeError> {
+    let v = cx.params().vec3("velocity")?;
+    if v != [0.0; 3] {
+        let n = e.vertex_count();
+        e.set_channel("velocity", Channel::Vec3(vec![v; n]));
+    }
+    Ok(e)
+}
+
 /// Vertex indices from a list parameter of whole numbers.
 fn indices(p: &Params, name: &str) -> Result<Vec<u32>, String> {
     p.floats(name)?
@@ -85,7 +96,8 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         .input("mesh", "mesh", "the cloth's mesh")
         .input_default("rest", "mesh", json!(null), "rest shape with the same vertices (default: the mesh itself)")
         .output("element", "element", "the cloth element")
-        .param(ParamSpec::string("name", "cloth").doc("element name, unique in the scene")),
+        .param(ParamSpec::string("name", "cloth").doc("element name, unique in the scene"))
+        .param(ParamSpec::vec3("velocity", [0.0; 3]).unit("m/s").doc("initial velocity of every vertex")),
         |p| {
             check_name(p)?;
             Ok(Kernel::from_fn(|cx| {
@@ -99,6 +111,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                 }
                 let name = cx.params().str("name")?.to_string();
                 let e = with_rest(cx, SceneElement::new(&name, ElementKind::Cloth, Geometry::Mesh(m)))?;
+                let e = with_velocity(cx, e)?;
                 cx.set("element", Value::new(e));
                 Ok(())
             }))
@@ -112,7 +125,8 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         .input("curves", "curves", "the strands")
         .input_default("rest", "curves", json!(null), "rest shape with the same vertices (default: the curves themselves)")
         .output("element", "element", "the hair element")
-        .param(ParamSpec::string("name", "hair").doc("element name, unique in the scene")),
+        .param(ParamSpec::string("name", "hair").doc("element name, unique in the scene"))
+        .param(ParamSpec::vec3("velocity", [0.0; 3]).unit("m/s").doc("initial velocity of every vertex")),
         |p| {
             check_name(p)?;
             Ok(Kernel::from_fn(|cx| {
@@ -126,6 +140,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                 }
                 let name = cx.params().str("name")?.to_string();
                 let e = with_rest(cx, SceneElement::new(&name, ElementKind::Hair, Geometry::Curves(c)))?;
+                let e = with_velocity(cx, e)?;
                 cx.set("element", Value::new(e));
                 Ok(())
             }))

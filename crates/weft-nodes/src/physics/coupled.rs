@@ -49,6 +49,10 @@ pub struct CoupledState {
     pub relaxation: Relaxation,
     /// Last changes of solid and fluid velocity [m/s].
     pub residual: [f64; 2],
+    /// The momentum the coupling gave the fluid over the step [kg·m/s]: Σ ρα(u − u*)Δx³,
+    /// u* the advected velocity the step started from (what the solids' momentum change
+    /// balances; zero for one-way coupling and without fluid).
+    pub exchange: [f64; 3],
 }
 
 /// What a step starts from, fixed across its iterations.
@@ -236,6 +240,7 @@ fn setup(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
         iteration: 0,
         relaxation: Relaxation::default(),
         residual: [0.0; 2],
+        exchange: [0.0; 3],
     };
     cx.set("state", Value::new(state));
     Ok(())
@@ -519,6 +524,12 @@ fn update(_: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
             it.iteration
         )));
     }
+    let rho = settings(&step.compiled).fluid.density;
+    let exchange = match (&fluid, &step.u_star, step.method) {
+        (_, _, Coupling::OneWay) => [0.0; 3],
+        (Some(u), Some(u_star), _) => u.momentum_gain(u_star, rho),
+        _ => [0.0; 3],
+    };
     let next = CoupledState {
         compiled: step.compiled.clone(),
         sim: SimState {
@@ -530,6 +541,7 @@ fn update(_: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
         iteration: it.iteration + 1,
         relaxation: solid.relaxation.clone(),
         residual: [dv, du],
+        exchange,
     };
     cx.set("iterate", Value::new(next));
     cx.set("converged", converged);
@@ -561,7 +573,9 @@ fn encode_state(v: &Value) -> Option<Vec<u8>> {
             w.u64(0);
         }
     }
-    w.u64(s.iteration as u64).f64s(&s.residual);
+    w.u64(s.iteration as u64)
+        .f64s(&s.residual)
+        .f64s(&s.exchange);
     Some(w.finish())
 }
 
@@ -583,6 +597,10 @@ fn restore_state(b: &[u8], template: &Value, inputs: &[(String, Value)]) -> Resu
         [a, b] => [a, b],
         _ => return Err("expected two residuals".into()),
     };
+    let exchange = match r.f64s()?[..] {
+        [a, b, c] => [a, b, c],
+        _ => return Err("expected a momentum".into()),
+    };
     r.end()?;
     let scene = inputs
         .iter()
@@ -597,6 +615,7 @@ fn restore_state(b: &[u8], template: &Value, inputs: &[(String, Value)]) -> Resu
         iteration,
         relaxation: Relaxation::default(),
         residual,
+        exchange,
     }))
 }
 
@@ -750,7 +769,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
     r.register(
         NodeSpec::new(
             "coupled.probe",
-            "reads the fluid of a coupled state: the velocity at a point, and the largest speed",
+            "reads the fluid of a coupled state: the velocity and pressure at a point, and the largest speed",
         )
         .input("state", "coupled", "the coupled state")
         .output(
@@ -758,6 +777,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             "vec3",
             "fluid velocity at the point [m/s] (zero without fluid)",
         )
+        .output("pressure", "float", "pressure of the cell holding the point [Pa], relative to hydrostatic (the grid solves for p − ρ g·x; zero without fluid)")
         .output("max_speed", "float", "largest face speed [m/s]")
         .param(
             ParamSpec::vec3("point", [0.0; 3])
@@ -769,15 +789,46 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                 let v = cx.input("state")?;
                 let s = get::<CoupledState>(&v, "state")?;
                 let p = cx.params().vec3("point")?;
-                let (vel, max) = match &s.fluid {
+                let (vel, pressure, max) = match &s.fluid {
                     Some(g) => (
                         g.velocity_at(p),
+                        g.pressure_at(p),
                         g.vel.iter().flatten().fold(0.0f64, |m, u| m.max(u.abs())),
                     ),
-                    None => ([0.0; 3], 0.0),
+                    None => ([0.0; 3], 0.0, 0.0),
                 };
                 cx.set("velocity", vel);
+                cx.set("pressure", pressure);
                 cx.set("max_speed", max);
+                Ok(())
+            }))
+        },
+    )?;
+    r.register(
+        NodeSpec::new(
+            "coupled.momentum",
+            "momentum diagnostics of a coupled state: the solids', the fluid's, and what the last step's coupling gave the fluid (which the solids' change balances: drag and pressure are internal)",
+        )
+        .input("state", "coupled", "the coupled state")
+        .output("solid", "vec3", "Σ m v over the simulated vertices [kg·m/s]")
+        .output("fluid", "vec3", "Σ ρ α u Δx³ over the grid's distinct faces [kg·m/s] (zero without fluid)")
+        .output("exchange", "vec3", "Σ ρ α (u − u*) Δx³ over the last step [kg·m/s], u* the advected fluid it started from (zero for one-way coupling)"),
+        |_| {
+            Ok(Kernel::from_fn(|cx| {
+                let v = cx.input("state")?;
+                let s = get::<CoupledState>(&v, "state")?;
+                let sys = &s.compiled.system;
+                let mut solid = [0.0; 3];
+                for (m, v) in sys.mass.iter().zip(&s.sim.solid.v) {
+                    for k in 0..3 {
+                        solid[k] += m * v[k];
+                    }
+                }
+                let rho = settings(&s.compiled).fluid.density;
+                let fluid = s.fluid.as_ref().map_or([0.0; 3], |g| g.momentum(rho));
+                cx.set("solid", solid);
+                cx.set("fluid", fluid);
+                cx.set("exchange", s.exchange);
                 Ok(())
             }))
         },

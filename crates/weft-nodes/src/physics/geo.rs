@@ -26,6 +26,7 @@ fn check_size(
     check_within(bytes, cx.memory_budget(), what, hint)?;
     Ok(())
 }
+use weft_scene::Curves;
 use weft_scene::procedural::{Plane, grid, sphere, strands_on_sphere};
 
 pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
@@ -205,6 +206,60 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                     p.f64("length")?,
                     p.f64("cap_degrees")?,
                 );
+                cx.set("curves", Value::new(c));
+                Ok(())
+            }))
+        },
+    )?;
+    r.register(
+        NodeSpec::new(
+            "geo.line",
+            "one straight strand from start to end, in equal segments (a fibre, a test strand)",
+        )
+        .output("curves", "curves", "the strand")
+        .param(
+            ParamSpec::vec3("start", [0.0; 3])
+                .unit("m")
+                .doc("first vertex (the root)"),
+        )
+        .param(
+            ParamSpec::vec3("end", [0.1, 0.0, 0.0])
+                .unit("m")
+                .doc("last vertex (the tip)"),
+        )
+        .param(
+            ParamSpec::int("segments", 8)
+                .ge(1.0)
+                .le(10_000_000.0)
+                .doc("segments along the strand"),
+        ),
+        |p| {
+            if p.vec3("start")? == p.vec3("end")? {
+                return Err(
+                    "param 'end': must differ from 'start' (a strand needs a length)".into(),
+                );
+            }
+            Ok(Kernel::from_fn(|cx| {
+                let p = cx.params().clone();
+                let (a, b, n) = (p.vec3("start")?, p.vec3("end")?, p.usize("segments")?);
+                let v = n as u64 + 1;
+                check_size(
+                    cx,
+                    v,
+                    product(&[v, 48]),
+                    || format!("segments = {n}"),
+                    "lower segments",
+                )?;
+                let positions = (0..=n)
+                    .map(|i| {
+                        let t = i as f64 / n as f64;
+                        [0, 1, 2].map(|k| a[k] + t * (b[k] - a[k]))
+                    })
+                    .collect();
+                let c = Curves {
+                    positions,
+                    offsets: vec![0, v as u32],
+                };
                 cx.set("curves", Value::new(c));
                 Ok(())
             }))

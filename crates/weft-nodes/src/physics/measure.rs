@@ -38,10 +38,15 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
     r.register(
         NodeSpec::new(
             "scene.centroid",
-            "the mean vertex position of one element of a scene",
+            "the mean vertex position (and velocity) of one element of a scene",
         )
         .input("scene", "scene", "the scene")
         .output("centroid", "vec3", "mean position [m]")
+        .output(
+            "velocity",
+            "vec3",
+            "mean velocity [m/s] (its 'velocity' channel; zero without one)",
+        )
         .param(ParamSpec::string("element", "cloth").doc("element name")),
         |_| {
             Ok(Kernel::from_fn(|cx| {
@@ -61,6 +66,15 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                     }
                 }
                 cx.set("centroid", c);
+                let mut v = [0.0; 3];
+                if let Some(vel) = e.vec3_channel("velocity").filter(|c| c.len() == p.len()) {
+                    for q in vel {
+                        for k in 0..3 {
+                            v[k] += q[k] / p.len() as f64;
+                        }
+                    }
+                }
+                cx.set("velocity", v);
                 Ok(())
             }))
         },

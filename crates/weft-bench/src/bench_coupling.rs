@@ -31,6 +31,9 @@ pub fn suite(quick: bool, out: &Path) -> Result<Checks, String> {
     };
     let hs: Vec<f64> = ns.iter().map(|n| 1.0 / n).collect();
     let mut runs: Vec<Run> = Vec::new();
+    // Per run: the graph's own time per coupling iteration beyond its stages', and the
+    // iteration's wall time.
+    let mut overheads: Vec<(f64, f64)> = Vec::new();
     for &xi in xis {
         let scene = Scene::Strand {
             density: DENSITY,
@@ -42,12 +45,10 @@ pub fn suite(quick: bool, out: &Path) -> Result<Checks, String> {
         }
         for m in COUPLINGS {
             for &h in &hs {
-                runs.push(scenes_coupled::coupled_run(
-                    scene,
-                    m,
-                    h,
-                    reference.as_deref(),
-                ));
+                let (run, overhead, per) =
+                    scenes_coupled::coupled_run(scene, m, h, reference.as_deref());
+                runs.push(run);
+                overheads.push((overhead, per));
             }
         }
     }
@@ -69,7 +70,7 @@ pub fn suite(quick: bool, out: &Path) -> Result<Checks, String> {
             let cells: Vec<String> = COUPLINGS
                 .iter()
                 .map(|m| {
-                    find(m.1, p, h).map_or("-".into(), |r| match r.status {
+                    find(m, p, h).map_or("-".into(), |r| match r.status {
                         Status::BlownUp => "blown up".into(),
                         _ => format!("{:.2e} ({:.1} it)", r.error, r.iterations),
                     })
@@ -88,7 +89,7 @@ pub fn suite(quick: bool, out: &Path) -> Result<Checks, String> {
         .filter(|r| r.param == strongest)
         .cloned()
         .collect();
-    let methods = COUPLINGS.map(|m| m.1);
+    let methods = COUPLINGS;
     let orders = sweep::orders_in_step(&strongest_runs, &methods);
     let newton_order = sweep::order_named(&orders, "newton");
     println!(
@@ -132,14 +133,33 @@ pub fn suite(quick: bool, out: &Path) -> Result<Checks, String> {
     let mut sheet: Vec<Run> = Vec::new();
     for m in COUPLINGS {
         for &h in &hs {
-            sheet.push(scenes_coupled::coupled_run(
-                Scene::Sheet,
-                m,
-                h,
-                sheet_ref.as_deref(),
-            ));
+            let (run, overhead, per) =
+                scenes_coupled::coupled_run(Scene::Sheet, m, h, sheet_ref.as_deref());
+            sheet.push(run);
+            overheads.push((overhead, per));
         }
     }
+    // The engine's own cost per coupling iteration: the time an iteration takes beyond its
+    // stages' kernels (scheduling, dirtiness, caching, feedback), against the iteration.
+    let mut fractions: Vec<f64> = overheads
+        .iter()
+        .filter(|(o, p)| o.is_finite() && *p > 0.0)
+        .map(|(o, p)| o / p)
+        .collect();
+    fractions.sort_by(f64::total_cmp);
+    let mut micros: Vec<f64> = overheads
+        .iter()
+        .filter(|(o, _)| o.is_finite())
+        .map(|(o, _)| o * 1e6)
+        .collect();
+    micros.sort_by(f64::total_cmp);
+    let median = |v: &[f64]| v.get(v.len() / 2).copied().unwrap_or(f64::NAN);
+    let (overhead_us, overhead_fraction) = (median(&micros), median(&fractions));
+    println!(
+        "\ngraph overhead per coupling iteration (beyond the stages' kernels): median {overhead_us:.1} µs, {:.3} % of an iteration (largest {:.3} %)",
+        100.0 * overhead_fraction,
+        100.0 * fractions.last().copied().unwrap_or(f64::NAN)
+    );
     let terminal = weft_sim::verify::sheet_terminal();
     let fall = sheet_ref
         .as_ref()
@@ -157,7 +177,7 @@ pub fn suite(quick: bool, out: &Path) -> Result<Checks, String> {
             .map(|m| {
                 sheet
                     .iter()
-                    .find(|r| r.method == m.1 && (r.h - h).abs() < 1e-12)
+                    .find(|r| r.method == *m && (r.h - h).abs() < 1e-12)
                     .map_or("-".into(), |r| {
                         format!("{:.2e} ({:.1} it)", r.error, r.iterations)
                     })
@@ -193,6 +213,8 @@ pub fn suite(quick: bool, out: &Path) -> Result<Checks, String> {
             "density_kg_m3": DENSITY,
             "inaccurate_above": scenes_coupled::COUPLED_INACCURATE,
             "newton_order": newton_order,
+            "graph_overhead_us_per_iteration": overhead_us,
+            "graph_overhead_fraction_of_iteration": overhead_fraction,
             "checks": checks,
         }),
     )?;
