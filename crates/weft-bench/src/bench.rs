@@ -91,15 +91,7 @@ fn dirty_pull_ms(g: &mut Graph, node: &str, reps: usize) -> f64 {
     median(times)
 }
 
-/// One measured row.
-#[derive(serde::Serialize)]
-pub(crate) struct Row {
-    pub case: String,
-    pub nodes: usize,
-    pub value: f64,
-    pub unit: &'static str,
-    pub target: &'static str,
-}
+use crate::row::Row;
 
 fn graph_suite(reg: &Arc<Registry>, quick: bool) -> Vec<Row> {
     let sizes: &[usize] = if quick {

@@ -6,7 +6,7 @@
 //! (counted from the arrays it streams), and the fraction of the measured single-thread
 //! memory bandwidth (a STREAM-style triad over 3 × 128 MiB) that this amounts to.
 
-use crate::bench::Row;
+use crate::row::Row;
 use std::time::Instant;
 use weft_fluid::pressure::max_divergence;
 use weft_fluid::{Boundaries, Domain, MacGrid, PressureSolve, Projection};

@@ -7,7 +7,7 @@
 //! between assembly, factorization and triangular solves, and the time per Newton iteration
 //! against vertex count with the fitted exponent.
 
-use crate::bench::Row;
+use crate::row::Row;
 use std::sync::Arc;
 use std::time::Instant;
 use weft_scene::procedural::{Plane, grid, strands_on_sphere};

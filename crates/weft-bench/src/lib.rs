@@ -19,6 +19,8 @@ mod bench_coupling;
 mod bench_fluid;
 mod bench_solid;
 mod charts;
+pub mod graphs;
+mod row;
 pub mod scenes_coupled;
 mod scenes_resolution;
 mod sweep;

@@ -12,6 +12,7 @@
 //! run with the same parameter overrides `weft run --set` makes, and stepped frame by frame
 //! through `solver.coupled`: the loop users run is the loop measured.
 
+pub use crate::graphs::{load, set};
 use crate::sweep::{Run, Status};
 use std::time::Instant;
 use weft_fluid::FluidProperties;
@@ -37,20 +38,6 @@ pub const STRAND_BOX: &str = include_str!("../scenes/strand_box.json");
 pub const SETTLING_SHEET: &str = include_str!("../scenes/settling_sheet.json");
 /// See [`STRAND_BOX`].
 pub const POROUS_CHANNEL: &str = include_str!("../scenes/porous_channel.json");
-
-/// Loads a scene template with the standard node library.
-pub fn load(template: &str, name: &str) -> Result<Graph, String> {
-    weft_graph::load_str(&weft_nodes::registry(), template, name).map_err(|e| e.to_string())
-}
-
-/// Sets `node.param` (or `instance.stage.param` inside a composite) as `weft run --set` does.
-pub fn set(g: &mut Graph, what: &str, value: serde_json::Value) -> Result<(), String> {
-    let (node, param) = what
-        .split_once('.')
-        .ok_or_else(|| format!("{what}: expected node.param"))?;
-    g.set_param(node, param, value)
-        .map_err(|d| format!("{what}: {}", d.describe()))
-}
 
 /// The strand template set to a strand of `radius` and `density` with drag scale `xi_d`;
 /// the stretch stiffness E·πr² stays 10 N.

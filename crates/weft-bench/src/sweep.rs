@@ -13,8 +13,7 @@
 
 use serde::Serialize;
 use std::time::Instant;
-use weft_solid::energy::RodStretch;
-use weft_solid::{Integrator, Method, Settings, SolidSystem, State};
+use weft_solid::Method;
 
 /// Error above which a run is called inaccurate: 1 cm, 1 % of the pendulum's length.
 pub const INACCURATE: f64 = 1e-2;
@@ -177,6 +176,10 @@ pub fn pendulum_run_to(
     pendulum(method, h, k, reference, tolerance, true)
 }
 
+/// The pendulum scene: a graph file (`scenes/pendulum.json`) stepped by `solver.solid`,
+/// the node users run.
+pub const PENDULUM: &str = include_str!("../scenes/pendulum.json");
+
 fn pendulum(
     method: (Method, &'static str),
     h: f64,
@@ -187,47 +190,43 @@ fn pendulum(
 ) -> Run {
     let steps = (DURATION / h).round().max(1.0) as usize;
     let h = DURATION / steps as f64;
-    let mut sys = SolidSystem::new(vec![1.0, 1.0]);
-    sys.pinned[0] = true;
-    sys.gravity = nalgebra::Vector3::new(0.0, -G, 0.0);
-    sys.elements.stretches.push(RodStretch {
-        v: [0, 1],
-        rest_length: LENGTH,
-        k,
-    });
-    let mut state = State {
-        x: vec![nalgebra::Vector3::zeros(), bob_start().into()],
-        v: vec![nalgebra::Vector3::zeros(); 2],
-    };
-    let settings = Settings {
-        method: method.0,
-        tolerance,
-        max_iterations: 100,
-    };
+    let fps = steps as f64 / DURATION;
     let t = Instant::now();
     let mut blown = false;
-    let mut iterations = 0;
-    match Integrator::new(&sys) {
-        Ok(mut integ) => {
-            for _ in 0..steps {
-                let step = integ.step(&sys, &mut state, None, h, &settings);
-                iterations += step.as_ref().map_or(0, |s| s.iterations);
-                if step.is_err()
-                    || !state.x[1].iter().all(|c| c.is_finite())
-                    || state.x[1].norm() > 10.0
-                {
-                    blown = true;
-                    break;
+    let mut bob = [f64::NAN; 3];
+    let mut graph = crate::graphs::load(PENDULUM, "pendulum.json").and_then(|mut g| {
+        // The rod's cross-section is 1 m², so Young's modulus is the stiffness k.
+        crate::graphs::set(&mut g, "rod.youngs_modulus", k.into())?;
+        crate::graphs::set(&mut g, "solve.method", method.1.into())?;
+        crate::graphs::set(&mut g, "solve.tolerance", tolerance.into())?;
+        Ok(g)
+    });
+    match &mut graph {
+        Ok(g) => {
+            for f in 1..=steps as i64 {
+                let x = g
+                    .pull("bob", weft_graph::Context::at(f, fps))
+                    .ok()
+                    .and_then(|v| v.get::<[f64; 3]>().copied());
+                match x {
+                    Some(x) if x.iter().all(|c| c.is_finite()) && norm(x) <= 10.0 => bob = x,
+                    _ => {
+                        blown = true;
+                        break;
+                    }
                 }
             }
         }
         Err(_) => blown = true,
     }
     let seconds = t.elapsed().as_secs_f64();
+    let iterations = graph
+        .as_ref()
+        .map_or(f64::NAN, |g| newton_per_step(g, "solve"));
     let error = if blown {
         f64::NAN
     } else {
-        (state.x[1] - nalgebra::Vector3::from(reference)).norm()
+        norm([0, 1, 2].map(|c| bob[c] - reference[c]))
     };
     Run {
         scene: if swept {
@@ -249,12 +248,28 @@ fn pendulum(
         iterations: if method.0 == Method::Explicit {
             f64::NAN
         } else {
-            iterations as f64 / steps as f64
+            iterations
         },
         seconds,
         steps,
         status: Status::of(blown, error, INACCURATE),
     }
+}
+
+fn norm(x: [f64; 3]) -> f64 {
+    (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt()
+}
+
+/// Newton iterations per step of a `solver.solid` node over every frame it stepped.
+fn newton_per_step(g: &weft_graph::Graph, node: &str) -> f64 {
+    g.stats()
+        .iter()
+        .find(|r| r.node == node)
+        .and_then(|r| {
+            let d = r.details.as_ref()?;
+            Some(d["total_newton_iterations"].as_f64()? / d["total_steps"].as_f64()?)
+        })
+        .unwrap_or(f64::NAN)
 }
 
 /// The least-squares slope of log(error) against log(h): the observed order of convergence.

@@ -163,7 +163,7 @@ impl CompositePlan {
                 let fed = pairs.iter().any(|&(_, oo)| oo == o);
                 let ty = g.output_type(name_o).unwrap_or("any");
                 match (&decl.initial, fed) {
-                    (Some(j), _) => match crate::compile::json_value(reg, ty, j) {
+                    (Some(j), _) => match reg.json_value(ty, j) {
                         Some(v) => initial[o] = Some(v),
                         None => d.push(Diagnostic::error(decl.path.clone(), format!("'initial' is not a valid {ty}"))),
                     },

@@ -11,11 +11,12 @@
 //! - Evaluation is iterative over the needed set, so deep chains do not grow the call stack;
 //!   only lazy-input and stateful nodes pull recursively, one level per such node.
 
-use crate::diag::{Diagnostic, nearest};
+use crate::diag::Diagnostic;
 use crate::interrupt::Interrupt;
+use crate::node::Factory;
 use crate::node::{EvalCx, EvalError, Kernel, NodeError};
-use crate::params::{Params, check_param};
-use crate::registry::{Factory, Registry};
+use crate::params::Params;
+use crate::registry::Registry;
 use crate::spec::{NodeSpec, TimeClass};
 use crate::value::Value;
 use serde::Serialize;
@@ -23,7 +24,6 @@ use std::any::TypeId;
 use std::collections::{BTreeMap, HashMap};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-use xxhash_rust::xxh3::Xxh3;
 
 /// Where in time a value is asked for.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -47,7 +47,7 @@ impl Context {
     pub fn time(&self) -> f64 {
         self.frame as f64 / self.fps
     }
-    fn with_frame(self, frame: i64) -> Self {
+    pub(crate) fn with_frame(self, frame: i64) -> Self {
         Context { frame, ..self }
     }
 }
@@ -94,7 +94,7 @@ pub struct RunWarning {
     pub message: String,
 }
 
-struct Cached {
+pub(crate) struct Cached {
     ctx: Context,
     outputs: Vec<Value>,
 }
@@ -115,13 +115,13 @@ pub(crate) struct Slot {
     pub downstream: Vec<usize>,
     pub eff_static: bool,
     pub dirty: bool,
-    cache: Option<Cached>,
-    checkpoints: crate::checkpoints::Checkpoints,
+    pub(crate) cache: Option<Cached>,
+    pub(crate) checkpoints: crate::checkpoints::Checkpoints,
     ckpt_fps: f64,
-    hash: Option<u128>,
+    pub(crate) hash: Option<u128>,
     /// Hash of a source value or of what the kernel adds.
     pub external: u128,
-    stats: NodeStats,
+    pub(crate) stats: NodeStats,
 }
 
 impl Slot {
@@ -166,7 +166,7 @@ impl std::fmt::Debug for Graph {
 
 /// A compiled, evaluable graph.
 pub struct Graph {
-    registry: Arc<Registry>,
+    pub(crate) registry: Arc<Registry>,
     pub(crate) slots: Vec<Slot>,
     pub(crate) ids: HashMap<String, usize>,
     pub(crate) outputs: BTreeMap<String, (usize, usize)>,
@@ -178,7 +178,7 @@ pub struct Graph {
     pub(crate) load_warnings: Vec<Diagnostic>,
     interrupt: Interrupt,
     output_root: Option<std::path::PathBuf>,
-    checkpoint_dir: Option<std::path::PathBuf>,
+    pub(crate) checkpoint_dir: Option<std::path::PathBuf>,
     warning_sink: Option<WarningSink>,
 }
 
@@ -199,7 +199,7 @@ fn non_finite(v: &Value) -> Option<f64> {
         .and_then(|a| a.iter().copied().find(|x| bad(x)))
 }
 
-fn nonce() -> u128 {
+pub(crate) fn nonce() -> u128 {
     use std::sync::atomic::{AtomicU64, Ordering};
     static N: AtomicU64 = AtomicU64::new(1);
     let t = std::time::SystemTime::now()
@@ -421,7 +421,7 @@ impl Graph {
         Ok(self.slots[src].cache.as_ref().map(|c| c.outputs[p].clone()))
     }
 
-    fn cx(&mut self, n: usize, ctx: Context) -> EvalCx<'_> {
+    pub(crate) fn cx(&mut self, n: usize, ctx: Context) -> EvalCx<'_> {
         let params = self.slots[n].params.clone();
         let outputs = vec![None; self.slots[n].spec.outputs.len()];
         EvalCx {
@@ -587,132 +587,8 @@ impl Graph {
         Ok(cx.outputs)
     }
 
-    /// Keeps a state in memory (within the checkpoints' budget).
-    fn keep(&mut self, n: usize, k: &dyn crate::node::Step, frame: i64, state: &Value, start: i64) {
-        let bytes = k.state_bytes(state, &self.registry);
-        self.slots[n]
-            .checkpoints
-            .insert(frame, state.clone(), bytes, start);
-    }
-
-    /// The key a node's disk checkpoints carry: its structure (type, parameters, kernel,
-    /// everything upstream), the frame rate, and Weft's version (another version's solver
-    /// may step differently, so its states are recomputed, not restored).
-    fn checkpoint_key(&mut self, n: usize, fps: f64) -> u128 {
-        let mut h = Xxh3::new();
-        h.update(b"weft-checkpoint-1");
-        h.update(env!("CARGO_PKG_VERSION").as_bytes());
-        h.update(&self.structural_hash(n).to_le_bytes());
-        h.update(&fps.to_le_bytes());
-        h.digest128()
-    }
-
-    fn checkpoint_file(&self, n: usize, frame: i64) -> Option<std::path::PathBuf> {
-        let dir = self.checkpoint_dir.as_ref()?;
-        Some(
-            dir.join(&self.slots[n].id)
-                .join(format!("frame_{frame:06}.wstate")),
-        )
-    }
-
-    /// The newest state of `n` on disk for a frame in `lo..=hi` whose key matches, restored.
-    /// A damaged or stale file is skipped (the frame is then stepped); only the node's own
-    /// failure to restore a valid file is an error.
-    fn restore_from_disk(
-        &mut self,
-        n: usize,
-        k: &mut dyn crate::node::Step,
-        lo: i64,
-        hi: i64,
-        start: i64,
-        ctx: Context,
-    ) -> Result<Option<(i64, Value)>, (NodeError, i64)> {
-        let Some(dir) = self
-            .checkpoint_dir
-            .as_ref()
-            .map(|d| d.join(&self.slots[n].id))
-        else {
-            return Ok(None);
-        };
-        let Ok(entries) = std::fs::read_dir(&dir) else {
-            return Ok(None);
-        };
-        let mut frames: Vec<i64> = entries
-            .flatten()
-            .filter_map(|e| {
-                e.file_name()
-                    .to_str()?
-                    .strip_prefix("frame_")?
-                    .strip_suffix(".wstate")?
-                    .parse()
-                    .ok()
-            })
-            .filter(|f| (lo..=hi).contains(f) && *f > start)
-            .collect();
-        frames.sort_unstable();
-        let key = self.checkpoint_key(n, ctx.fps);
-        for frame in frames.into_iter().rev() {
-            let Some(path) = self.checkpoint_file(n, frame) else {
-                break;
-            };
-            let Ok(bytes) = std::fs::read(&path) else {
-                continue;
-            };
-            let Some((_, payload)) = crate::cache::decode_frame(&bytes, key, frame) else {
-                continue;
-            };
-            let initial = match self.slots[n].checkpoints.get(&start) {
-                Some(s) => s.clone(),
-                None => {
-                    let mut cx = self.cx(n, ctx.with_frame(start));
-                    let s = k.init(&mut cx).map_err(|e| (e, start))?;
-                    self.keep(n, k, start, &s, start);
-                    s
-                }
-            };
-            let mut cx = self.cx(n, ctx.with_frame(frame));
-            let state = k
-                .load_state(payload, &initial, &mut cx)
-                .map_err(|e| (e, frame))?;
-            self.keep(n, k, frame, &state, start);
-            self.slots[n].stats.restored += 1;
-            return Ok(Some((frame, state)));
-        }
-        Ok(None)
-    }
-
-    /// Writes `state` (frame `at`) to the checkpoint directory, atomically. A failed write
-    /// is a warning: the run goes on, only resuming loses that frame.
-    fn save_to_disk(
-        &mut self,
-        n: usize,
-        k: &dyn crate::node::Step,
-        at: i64,
-        state: &Value,
-        fps: f64,
-    ) {
-        let Some(path) = self.checkpoint_file(n, at) else {
-            return;
-        };
-        let Some(payload) = k.save_state(state, &self.registry) else {
-            return;
-        };
-        let key = self.checkpoint_key(n, fps);
-        let bytes = crate::cache::encode_frame(key, at, "state", &payload);
-        if let Err(e) = crate::cache::atomic_write(&path, &bytes) {
-            self.push_warning(
-                n,
-                Some(at),
-                format!(
-                    "cannot write the checkpoint {}: {e} (resuming will recompute this frame)",
-                    path.display()
-                ),
-            );
-        }
-    }
-
     /// Pushes dirtiness from `n` to everything downstream; drops caches, hashes, checkpoints.
-    fn mark_dirty(&mut self, n: usize) {
+    pub(crate) fn mark_dirty(&mut self, n: usize) {
         let generation = self.next_mark();
         let mut stack = vec![n];
         while let Some(m) = stack.pop() {
@@ -773,97 +649,6 @@ impl Graph {
         Ok(self.slots[n].cache.as_ref().expect("ensured").outputs[p].clone())
     }
 
-    /// Changes a parameter (validated as at load) and dirties the node and its downstream.
-    pub fn set_param(
-        &mut self,
-        node: &str,
-        param: &str,
-        value: serde_json::Value,
-    ) -> Result<(), Box<Diagnostic>> {
-        self.set_params(node, &[(param, value)])
-    }
-
-    /// Sets several parameters of one node at once: each is checked, then the node's factory
-    /// runs once on all of them, so a combination that is only valid together (both sides of
-    /// a periodic axis) can be made. On any error nothing changes.
-    pub fn set_params(
-        &mut self,
-        node: &str,
-        values: &[(&str, serde_json::Value)],
-    ) -> Result<(), Box<Diagnostic>> {
-        let &n = self.ids.get(node).ok_or_else(|| {
-            Diagnostic::error(vec![], "no such node")
-                .node(node)
-                .help(nearest(node, self.ids.keys().map(|s| s.as_str())))
-        })?;
-        let spec = self.slots[n].spec.clone();
-        let mut params = (*self.slots[n].params).clone();
-        for (param, value) in values {
-            let ps = spec.param_spec(param).ok_or_else(|| {
-                Diagnostic::error(vec![], "no such parameter")
-                    .node(node)
-                    .field(format!("param '{param}'"))
-                    .help(nearest(param, spec.params.iter().map(|p| p.name.as_str())))
-            })?;
-            if spec
-                .outputs
-                .iter()
-                .any(|o| o.ty == crate::spec::TypeRef::FromParam(param.to_string()))
-            {
-                return Err(Box::new(
-                    Diagnostic::error(vec![], "sets an output's type, so it can only be given in the graph file (connections were type-checked against it at load)")
-                        .node(node)
-                        .field(format!("param '{param}'")),
-                ));
-            }
-            let v = check_param(ps, value).map_err(|m| {
-                Diagnostic::error(vec![], m)
-                    .node(node)
-                    .field(format!("param '{param}'"))
-            })?;
-            params.set(param, v);
-        }
-        if let Some(f) = self.slots[n].factory.clone() {
-            let names: Vec<&str> = values.iter().map(|(p, _)| *p).collect();
-            let k = f(&params).map_err(|m| {
-                Diagnostic::error(vec![], m)
-                    .node(node)
-                    .field(format!("param '{}'", names.join("', '")))
-            })?;
-            self.slots[n].external = k.kernel_hash();
-            self.slots[n].kernel = Some(k);
-        }
-        self.slots[n].params = Arc::new(params);
-        self.mark_dirty(n);
-        Ok(())
-    }
-
-    /// Sets a graph input's value and dirties its downstream.
-    pub fn set_input(&mut self, name: &str, value: Value) -> Result<(), Box<Diagnostic>> {
-        let &n = self.inputs.get(name).ok_or_else(|| {
-            Diagnostic::error(vec![], format!("the graph has no input '{name}'"))
-                .help(nearest(name, self.inputs.keys().map(|s| s.as_str())))
-        })?;
-        if let Some(t) = self.slots[n].out_types[0]
-            && value.payload_type_id() != t
-        {
-            return Err(Box::new(Diagnostic::error(
-                vec![],
-                format!("input '{name}' expects {}", self.slots[n].out_type_names[0]),
-            )));
-        }
-        self.slots[n].external = self.value_hash(&value);
-        self.slots[n].source = Some(value);
-        self.mark_dirty(n);
-        Ok(())
-    }
-
-    /// Gives a graph input its value at load time (a declared default).
-    pub(crate) fn set_input_initial(&mut self, n: usize, v: Value) {
-        self.slots[n].external = self.value_hash(&v);
-        self.slots[n].source = Some(v);
-    }
-
     /// Warnings found while loading (the graph still compiled).
     pub fn load_warnings(&self) -> &[Diagnostic] {
         &self.load_warnings
@@ -872,92 +657,6 @@ impl Graph {
     /// Seconds spent so far in each node, in slot order (for per-iteration stage timing).
     pub(crate) fn seconds_snapshot(&self) -> Vec<f64> {
         self.slots.iter().map(|s| s.stats.seconds).collect()
-    }
-
-    /// Hash of a value through its port type's codec; a value without one never matches another.
-    pub(crate) fn value_hash(&self, v: &Value) -> u128 {
-        self.registry
-            .port_type_by_id(v.payload_type_id())
-            .and_then(|t| t.encode)
-            .and_then(|enc| enc(v))
-            .map(|b| xxhash_rust::xxh3::xxh3_128(&b))
-            .unwrap_or_else(nonce)
-    }
-
-    /// Hash of the node type, parameters and everything upstream: equal hashes mean equal
-    /// outputs at equal contexts (Gaffer's `hash()` separate from `compute()`).
-    pub(crate) fn structural_hash(&mut self, target: usize) -> u128 {
-        if let Some(h) = self.slots[target].hash {
-            return h;
-        }
-        let mut stack = vec![(target, false)];
-        while let Some((n, ready)) = stack.pop() {
-            if self.slots[n].hash.is_some() {
-                continue;
-            }
-            if !ready {
-                stack.push((n, true));
-                for &(s, _) in self.slots[n].inputs.iter().flatten() {
-                    if self.slots[s].hash.is_none() {
-                        stack.push((s, false));
-                    }
-                }
-                continue;
-            }
-            let s = &self.slots[n];
-            let mut h = Xxh3::new();
-            h.update(s.spec.name.as_bytes());
-            h.update(&[0]);
-            h.update(s.params.canonical().as_bytes());
-            h.update(&s.external.to_le_bytes());
-            for (i, conns) in s.inputs.iter().enumerate() {
-                h.update(&(i as u64).to_le_bytes());
-                for &(src, p) in conns {
-                    h.update(
-                        &self.slots[src]
-                            .hash
-                            .expect("inputs hashed first")
-                            .to_le_bytes(),
-                    );
-                    h.update(&(p as u64).to_le_bytes());
-                }
-                if conns.is_empty()
-                    && let Some(d) = &s.input_defaults[i]
-                {
-                    h.update(&self.value_hash(d).to_le_bytes());
-                }
-            }
-            let d = h.digest128();
-            self.slots[n].hash = Some(d);
-        }
-        self.slots[target].hash.expect("computed")
-    }
-
-    /// Hash of what is connected to input `port` of `n`, independent of the frame: equal
-    /// values mean the same upstream definition (for nodes that accumulate frames).
-    pub(crate) fn input_structure_hash(&mut self, n: usize, port: usize) -> u128 {
-        let conns = self.slots[n].inputs[port].clone();
-        let mut h = Xxh3::new();
-        for (src, p) in conns {
-            h.update(&self.structural_hash(src).to_le_bytes());
-            h.update(&(p as u64).to_le_bytes());
-        }
-        h.digest128()
-    }
-
-    /// Cache key of what is connected to input `port` of `n` at `ctx`.
-    pub(crate) fn input_hash(&mut self, n: usize, port: usize, ctx: Context) -> u128 {
-        let conns = self.slots[n].inputs[port].clone();
-        let mut h = Xxh3::new();
-        for (src, p) in conns {
-            h.update(&self.structural_hash(src).to_le_bytes());
-            h.update(&(p as u64).to_le_bytes());
-            if !self.slots[src].eff_static {
-                h.update(&ctx.frame.to_le_bytes());
-                h.update(&ctx.fps.to_le_bytes());
-            }
-        }
-        h.digest128()
     }
 
     pub(crate) fn input_time_dependent(&self, n: usize, port: usize) -> bool {
@@ -989,60 +688,5 @@ impl Graph {
     /// Warnings raised since the last call.
     pub fn take_warnings(&mut self) -> Vec<RunWarning> {
         std::mem::take(&mut self.warnings)
-    }
-
-    /// Per-node counters and reports, in evaluation order.
-    pub fn stats(&self) -> Vec<NodeReport> {
-        self.slots
-            .iter()
-            .map(|s| NodeReport {
-                node: s.id.clone(),
-                type_name: s.spec.name.clone(),
-                stats: s.stats.clone(),
-                details: s.kernel.as_ref().and_then(|k| k.stats_json()),
-            })
-            .collect()
-    }
-
-    /// A node's own report (`--stats` details): iterations and residuals of an iterating
-    /// composite, hits and writes of a cache. `None` for nodes that keep none.
-    pub fn node_report(&self, id: &str) -> Option<serde_json::Value> {
-        let &n = self.ids.get(id)?;
-        self.slots[n].kernel.as_ref()?.stats_json()
-    }
-
-    /// Counters of one node.
-    pub fn node_stats(&self, id: &str) -> Option<&NodeStats> {
-        self.ids.get(id).map(|&n| &self.slots[n].stats)
-    }
-
-    /// Evaluation count of one node (0 for unknown ids).
-    pub fn evaluations(&self, id: &str) -> u64 {
-        self.node_stats(id).map_or(0, |s| s.evaluations)
-    }
-
-    /// Zeroes every counter.
-    pub fn reset_stats(&mut self) {
-        for s in &mut self.slots {
-            s.stats = NodeStats::default();
-        }
-    }
-
-    /// Number of stored checkpoints of a stateful node.
-    pub fn checkpoint_frames(&self, id: &str) -> Vec<i64> {
-        self.ids
-            .get(id)
-            .map(|&n| self.slots[n].checkpoints.frames())
-            .unwrap_or_default()
-    }
-
-    /// Drops one node's checkpoints after `frame` (for tests and memory control).
-    pub fn drop_checkpoints_after(&mut self, id: &str, frame: i64) {
-        if let Some(&n) = self.ids.get(id) {
-            let s = &mut self.slots[n];
-            s.checkpoints.retain_up_to(frame);
-            s.cache = None;
-            // Downstream caches stay correct: the states that remain are unchanged.
-        }
     }
 }

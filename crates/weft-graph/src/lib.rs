@@ -31,33 +31,40 @@
 //! ```
 #![warn(missing_docs)]
 
+mod body;
 mod cache;
 mod checkpoints;
 pub mod codec;
 mod compile;
 mod composite;
 mod diag;
+mod edit;
 mod engine;
 mod file;
+mod files;
+mod hash;
 mod interrupt;
 mod locate;
 pub mod memory;
 mod node;
 mod params;
 mod paths;
+mod persist;
 mod registry;
+mod report;
 mod spec;
 mod value;
 
-pub use cache::{atomic_write, atomic_write_with};
 pub use compile::{library_specs, load_path, load_str};
 pub use diag::{Diagnostic, LoadError, Severity};
 pub use engine::{Context, Graph, NodeReport, NodeStats, RunWarning, WarningSink};
 pub use file::{FORMAT, SUPPORTED_VERSIONS};
+pub use files::{atomic_write, atomic_write_with};
 pub use interrupt::Interrupt;
+pub use node::Factory;
 pub use node::{Compute, EvalCx, EvalError, Kernel, NodeError, Step};
 pub use params::{ParamError, Params, check_param};
 pub use paths::resolve_output;
-pub use registry::{Factory, NodeType, Registry, RegistryError};
+pub use registry::{NodeType, Registry, RegistryError};
 pub use spec::{NodeSpec, ParamKind, ParamSpec, PortSpec, TimeClass, TypeRef};
 pub use value::{PortType, Value, builtin_port_types};

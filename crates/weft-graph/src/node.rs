@@ -126,6 +126,11 @@ pub trait Step: Send {
     }
 }
 
+/// Builds a node's kernel from its validated parameters. An `Err` is reported as a parameter
+/// error at load time (a malformed expression, an unreadable file, values that do not go
+/// together).
+pub type Factory = Arc<dyn Fn(&Params) -> Result<Kernel, String> + Send + Sync>;
+
 /// A node's implementation.
 pub enum Kernel {
     /// Static or animated.

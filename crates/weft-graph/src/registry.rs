@@ -1,16 +1,12 @@
 //! The registry of node types and port types, by name.
 
 use crate::diag::nearest;
-use crate::node::Kernel;
+use crate::node::{Factory, Kernel};
 use crate::params::{Params, check_param};
 use crate::spec::{NodeSpec, TypeRef};
 use crate::value::{PortType, builtin_port_types};
 use std::collections::BTreeMap;
 use std::sync::Arc;
-
-/// Builds a node's kernel from its validated parameters. An `Err` is reported as a parameter
-/// error at load time (a malformed expression, an unreadable file).
-pub type Factory = Arc<dyn Fn(&Params) -> Result<Kernel, String> + Send + Sync>;
 
 /// A registered node type.
 #[derive(Clone)]
@@ -80,7 +76,10 @@ impl Registry {
         for t in builtin_port_types() {
             r.port_types.insert(t.name.clone(), t);
         }
-        crate::cache::register(&mut r).expect("built-in cache nodes are consistent");
+        for (spec, factory) in crate::cache::node_types() {
+            r.register_shared(spec, factory)
+                .expect("built-in cache nodes are consistent");
+        }
         r
     }
 
@@ -212,6 +211,14 @@ impl Registry {
             }
         }
         Ok(())
+    }
+
+    /// A JSON value converted through port type `ty`'s JSON form (`None` when the type has
+    /// none or the value does not fit it).
+    pub(crate) fn json_value(&self, ty: &str, j: &serde_json::Value) -> Option<crate::Value> {
+        self.port_type(ty)
+            .and_then(|t| t.from_json)
+            .and_then(|f| f(j).ok())
     }
 
     /// About how many bytes `v` holds: its port type's estimate, else a small constant.

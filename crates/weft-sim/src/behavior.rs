@@ -1,7 +1,7 @@
 //! Behaviors: reusable simulation logic applied to every element that carries (or defaults)
 //! the SEC it reads.
 
-use crate::build::SystemBuilder;
+use crate::builder::SystemBuilder;
 use crate::error::SimError;
 use nalgebra::Vector3;
 use std::fmt::Debug;

@@ -13,6 +13,7 @@
 
 mod behavior;
 mod build;
+mod builder;
 mod coupled;
 mod error;
 pub mod estimate;

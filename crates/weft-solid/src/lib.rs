@@ -13,6 +13,7 @@
 
 pub mod energy;
 pub mod integrator;
+mod settings;
 pub mod spd;
 pub mod system;
 pub mod verify;

@@ -4,9 +4,14 @@
 //! compiled scene, the fluid's domain) comes from the start frame's state on restore, and is
 //! checked against what the bytes say.
 
+use super::coupled::CoupledState;
+use super::types::Scene;
+use std::sync::Arc;
 use weft_fluid::MacGrid;
+use weft_graph::Value;
 use weft_graph::codec::{Reader, Writer};
 use weft_scene::Transform;
+use weft_sim::Relaxation;
 use weft_sim::SimState;
 use weft_solid::State;
 
@@ -120,6 +125,71 @@ pub(crate) fn read_grid(r: &mut Reader<'_>, template: &MacGrid) -> Result<MacGri
     }
     g.pressure = p;
     Ok(g)
+}
+
+/// A frame's coupled state for a disk checkpoint: solids, fluid fields, last residuals
+/// (the compiled scene and the domain come back from the start frame's state).
+pub(crate) fn encode_state(v: &Value) -> Option<Vec<u8>> {
+    let s = v.get::<CoupledState>()?;
+    let mut w = weft_graph::codec::Writer::new();
+    write_sim(&mut w, &s.sim);
+    match &s.fluid {
+        Some(g) => {
+            w.u64(1);
+            write_grid(&mut w, g);
+        }
+        None => {
+            w.u64(0);
+        }
+    }
+    w.u64(s.iteration as u64)
+        .f64s(&s.residual)
+        .f64s(&s.exchange);
+    Some(w.finish())
+}
+
+/// Rebuilds a coupled state from [`encode_state`]'s bytes, the start frame's state and the
+/// solver's inputs at the restored frame (its scene).
+pub(crate) fn restore_state(
+    b: &[u8],
+    template: &Value,
+    inputs: &[(String, Value)],
+) -> Result<Value, String> {
+    let t = template
+        .get::<CoupledState>()
+        .ok_or("the start state is not a coupled state")?;
+    let mut r = weft_graph::codec::Reader::new(b);
+    let sim = read_sim(&mut r, &t.sim)?;
+    let fluid = match (r.u64()?, &t.fluid) {
+        (0, None) => None,
+        (1, Some(g)) => Some(Arc::new(read_grid(&mut r, g)?)),
+        _ => return Err("the fluid does not match the scene's".into()),
+    };
+    let iteration = r.u64()? as usize;
+    let residual = match r.f64s()?[..] {
+        [a, b] => [a, b],
+        _ => return Err("expected two residuals".into()),
+    };
+    let exchange = match r.f64s()?[..] {
+        [a, b, c] => [a, b, c],
+        _ => return Err("expected a momentum".into()),
+    };
+    r.end()?;
+    let scene = inputs
+        .iter()
+        .find(|(k, _)| k == "scene")
+        .and_then(|(_, v)| v.get::<Scene>())
+        .map_or_else(|| t.scene.clone(), |s| Arc::new(s.clone()));
+    Ok(Value::new(CoupledState {
+        compiled: t.compiled.clone(),
+        sim,
+        fluid,
+        scene,
+        iteration,
+        relaxation: Relaxation::default(),
+        residual,
+        exchange,
+    }))
 }
 
 #[cfg(test)]

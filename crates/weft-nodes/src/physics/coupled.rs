@@ -13,18 +13,16 @@
 //! rebuilt when the compiled scene changes.
 //!
 //! `coupled.setup` (outside the composite) compiles the scene and makes the fluid's initial
-//! grid — none when the scene has no fluid-domain element; `coupled.scene` and
-//! `coupled.probe` read results out of a state.
+//! grid — none when the scene has no fluid-domain element. The node types are registered in
+//! `coupled_nodes.rs`, with `coupled.scene`, `coupled.probe` and `coupled.momentum`, which
+//! read results out of a state; a state's checkpoint encoding is in `checkpoint.rs`.
 
 use super::types::Scene;
 use nalgebra::Vector3;
 use std::collections::VecDeque;
 use std::sync::Arc;
 use weft_fluid::{FluidProperties, MacGrid, PressureSolve};
-use weft_graph::{
-    Compute, EvalCx, Kernel, NodeError, NodeSpec, ParamSpec, PortType, Registry, RegistryError,
-    Value,
-};
+use weft_graph::{Compute, EvalCx, Kernel, NodeError, NodeSpec, Registry, RegistryError, Value};
 use weft_scene::Transform;
 use weft_sim::{
     BehaviorTree, Compiled, CoupledSettings, CoupledStepper, Coupling, Exchange, Relaxation,
@@ -82,14 +80,14 @@ pub struct SolidIterate {
 /// A fluid iterate (None without fluid, or in stages that do nothing for this method).
 pub struct FluidValue(Option<Arc<MacGrid>>, usize);
 
-fn get<'a, T: 'static>(v: &'a Value, port: &str) -> Result<&'a T, NodeError> {
+pub(super) fn get<'a, T: 'static>(v: &'a Value, port: &str) -> Result<&'a T, NodeError> {
     v.get::<T>().ok_or_else(|| NodeError::Input {
         port: port.into(),
         message: "unexpected value type".into(),
     })
 }
 
-fn failed(e: impl std::fmt::Display) -> NodeError {
+pub(super) fn failed(e: impl std::fmt::Display) -> NodeError {
     NodeError::Failed(e.to_string())
 }
 
@@ -107,7 +105,7 @@ fn stage_error(
     }
 }
 
-fn settings(compiled: &Compiled) -> CoupledSettings {
+pub(super) fn settings(compiled: &Compiled) -> CoupledSettings {
     let g = compiled.system.gravity;
     CoupledSettings {
         fluid: compiled
@@ -121,7 +119,7 @@ fn settings(compiled: &Compiled) -> CoupledSettings {
 
 /// A stage's workspace, rebuilt when the compiled scene changes.
 #[derive(Default)]
-struct Workspace {
+pub(super) struct Workspace {
     compiled: Option<Arc<Compiled>>,
     stepper: CoupledStepper,
     system: Option<SolidSystem>,
@@ -181,7 +179,7 @@ impl Compute for Stage {
     }
 }
 
-fn stage(
+pub(super) fn stage(
     r: &mut Registry,
     spec: NodeSpec,
     run: fn(&mut Workspace, &mut EvalCx<'_>) -> Result<(), NodeError>,
@@ -194,7 +192,7 @@ fn stage(
     })
 }
 
-fn setup(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
+pub(super) fn setup(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let scene = cx.input("scene")?;
     let scene = get::<Scene>(&scene, "scene")?.clone();
     let tree = cx.input_as::<BehaviorTree>("tree")?;
@@ -246,7 +244,7 @@ fn setup(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     Ok(())
 }
 
-fn predict(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
+pub(super) fn predict(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let sv = cx.input("state")?;
     let s = get::<CoupledState>(&sv, "state")?;
     let scene = cx.input("scene")?;
@@ -303,7 +301,7 @@ fn predict(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     Ok(())
 }
 
-fn forces(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
+pub(super) fn forces(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let stv = cx.input("step")?;
     let step = get::<StepStart>(&stv, "step")?;
     let itv = cx.input("iterate")?;
@@ -352,7 +350,7 @@ fn forces(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     Ok(())
 }
 
-fn solid(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
+pub(super) fn solid(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let stv = cx.input("step")?;
     let step = get::<StepStart>(&stv, "step")?;
     let itv = cx.input("iterate")?;
@@ -438,7 +436,7 @@ fn solid(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     Ok(())
 }
 
-fn rasterize(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
+pub(super) fn rasterize(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let stv = cx.input("step")?;
     let step = get::<StepStart>(&stv, "step")?;
     let exv = cx.input("exchange")?;
@@ -465,7 +463,7 @@ fn rasterize(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     Ok(())
 }
 
-fn pressure(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
+pub(super) fn pressure(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let stv = cx.input("step")?;
     let step = get::<StepStart>(&stv, "step")?;
     let fv = cx.input("faces")?;
@@ -498,7 +496,7 @@ fn pressure(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     Ok(())
 }
 
-fn update(_: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
+pub(super) fn update(_: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let stv = cx.input("step")?;
     let step = get::<StepStart>(&stv, "step")?;
     let itv = cx.input("iterate")?;
@@ -549,289 +547,11 @@ fn update(_: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     Ok(())
 }
 
-fn finish(_: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
+pub(super) fn finish(_: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let itv = cx.input("iterate")?;
     let mut s = get::<CoupledState>(&itv, "iterate")?.clone();
     s.iteration = 0;
     s.relaxation = Relaxation::default();
     cx.set("state", Value::new(s));
     Ok(())
-}
-
-/// A frame's coupled state for a disk checkpoint: solids, fluid fields, last residuals
-/// (the compiled scene and the domain come back from the start frame's state).
-fn encode_state(v: &Value) -> Option<Vec<u8>> {
-    let s = v.get::<CoupledState>()?;
-    let mut w = weft_graph::codec::Writer::new();
-    super::checkpoint::write_sim(&mut w, &s.sim);
-    match &s.fluid {
-        Some(g) => {
-            w.u64(1);
-            super::checkpoint::write_grid(&mut w, g);
-        }
-        None => {
-            w.u64(0);
-        }
-    }
-    w.u64(s.iteration as u64)
-        .f64s(&s.residual)
-        .f64s(&s.exchange);
-    Some(w.finish())
-}
-
-/// Rebuilds a coupled state from [`encode_state`]'s bytes, the start frame's state and the
-/// solver's inputs at the restored frame (its scene).
-fn restore_state(b: &[u8], template: &Value, inputs: &[(String, Value)]) -> Result<Value, String> {
-    let t = template
-        .get::<CoupledState>()
-        .ok_or("the start state is not a coupled state")?;
-    let mut r = weft_graph::codec::Reader::new(b);
-    let sim = super::checkpoint::read_sim(&mut r, &t.sim)?;
-    let fluid = match (r.u64()?, &t.fluid) {
-        (0, None) => None,
-        (1, Some(g)) => Some(Arc::new(super::checkpoint::read_grid(&mut r, g)?)),
-        _ => return Err("the fluid does not match the scene's".into()),
-    };
-    let iteration = r.u64()? as usize;
-    let residual = match r.f64s()?[..] {
-        [a, b] => [a, b],
-        _ => return Err("expected two residuals".into()),
-    };
-    let exchange = match r.f64s()?[..] {
-        [a, b, c] => [a, b, c],
-        _ => return Err("expected a momentum".into()),
-    };
-    r.end()?;
-    let scene = inputs
-        .iter()
-        .find(|(k, _)| k == "scene")
-        .and_then(|(_, v)| v.get::<Scene>())
-        .map_or_else(|| t.scene.clone(), |s| Arc::new(s.clone()));
-    Ok(Value::new(CoupledState {
-        compiled: t.compiled.clone(),
-        sim,
-        fluid,
-        scene,
-        iteration,
-        relaxation: Relaxation::default(),
-        residual,
-        exchange,
-    }))
-}
-
-/// The library definition of `solver.coupled`.
-pub const SOLVER_COUPLED: &str = include_str!("solver_coupled.json");
-
-pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
-    r.register_port_type(
-        PortType::of::<CoupledState>(
-            "coupled",
-            "the coupled solver's state: solids, fluid grid, compiled scene",
-        )
-        .with_json(
-            |_| Err("a coupled state is made by coupled.setup".into()),
-            |v| {
-                v.get::<CoupledState>().map(|s| {
-                    serde_json::json!({
-                        "vertices": s.sim.solid.x.len(),
-                        "fluid_cells": s.fluid.as_ref().map(|g| g.domain.cells),
-                        "iteration": s.iteration, "residual": s.residual,
-                    })
-                })
-            },
-        )
-        .with_restore(encode_state, restore_state)
-        .with_size(|v| {
-            v.get::<CoupledState>().map_or(0, |s| {
-                48 * s.sim.solid.x.len()
-                    + s.fluid.as_ref().map_or(0, |g| 104 * g.domain.cell_count())
-            })
-        }),
-    )?;
-    r.register_port_type(PortType::of::<StepStart>(
-        "coupled_step",
-        "a coupled step's start: the previous state, this frame's targets, the predicted fluid",
-    ))?;
-    r.register_port_type(PortType::of::<ExchangeValue>(
-        "coupled_exchange",
-        "what solids and fluid exchange in one coupling iteration (samples, drag, forces)",
-    ))?;
-    r.register_port_type(PortType::of::<SolidIterate>(
-        "coupled_solid",
-        "a solid iterate of the coupling",
-    ))?;
-    r.register_port_type(PortType::of::<FluidValue>(
-        "coupled_fluid",
-        "a fluid iterate of the coupling (face fractions, drag, velocities, pressure)",
-    ))?;
-    let method = |d: &str| {
-        ParamSpec::choice("method", &["newton", "staggered", "one_way"], d)
-            .doc("newton: iterate the stages to tolerance; staggered: one pass; one_way: the fluid drives the solids and feels nothing back")
-    };
-    stage(
-        r,
-        NodeSpec::new("coupled.setup", "compiles the scene for the coupled solver and makes the fluid's initial grid (none when the scene has no fluid-domain element; --stats shows it)")
-            .input("scene", "scene", "the scene at the start frame")
-            .input("tree", "behavior_tree", "what is simulated")
-            .output("state", "coupled", "the state at the start frame"),
-        setup,
-    )?;
-    stage(
-        r,
-        NodeSpec::new("coupled.predict", "coupled stage, once per step: advects the fluid (u*; gravity is in the hydrostatic pressure), diffuses it when viscosity is on; one_way also projects it without solids")
-            .input("state", "coupled", "the state at the previous frame")
-            .input("scene", "scene", "the scene at this frame (attachment targets)")
-            .output("step", "coupled_step", "the step's start")
-            .param(method("newton"))
-            .param(ParamSpec::bool("viscosity", false).doc("viscous diffusion of the fluid after advection (implicit, nu = viscosity/density from the Fluid SEC); off: inviscid, as water and air are at hair and cloth scales"))
-            .param(ParamSpec::float("pressure_tolerance", 1e-8).gt(0.0).unit("1/s").doc("one_way: divergence tolerance of its projection"))
-            .param(ParamSpec::int("pressure_max_iterations", 2000).ge(1.0).doc("one_way: CG iteration limit of its projection")),
-        predict,
-    )?;
-    stage(
-        r,
-        NodeSpec::new("coupled.forces", "coupled stage: samples every drag element in the fluid iterate; per sample the drag (seed eqs. 1-3), pressure (buoyancy, -V grad p) and lift (eq. 4), lumped to vertices")
-            .input("step", "coupled_step", "the step's start")
-            .input("iterate", "coupled", "the coupling iterate")
-            .output("exchange", "coupled_exchange", "samples, per-vertex drag and forces"),
-        forces,
-    )?;
-    stage(
-        r,
-        NodeSpec::new("coupled.solid", "coupled stage: the implicit solid step with the fluid prescribed (drag implicit, pressure and lift explicit), Aitken- or quasi-Newton-relaxed between Newton iterations")
-            .input("step", "coupled_step", "the step's start")
-            .input("iterate", "coupled", "the coupling iterate")
-            .input("exchange", "coupled_exchange", "drag and forces")
-            .output("solid", "coupled_solid", "the new solid iterate")
-            .param(ParamSpec::choice("method", &["newton", "linearized", "explicit"], "newton").doc("the solid solve"))
-            .param(ParamSpec::float("tolerance", 1e-6).gt(0.0).unit("m/s").doc("Newton tolerance of the solid solve"))
-            .param(ParamSpec::int("max_iterations", 50).ge(1.0).le(10_000.0).doc("Newton iteration limit of the solid solve"))
-            .param(ParamSpec::choice("relaxation", &["aitken", "quasi_newton", "none"], "aitken").doc("relaxation of the solid iterate between coupling iterations (aitken: Irons-Tuck delta-squared; quasi_newton: IQN-ILS, a least-squares inverse Jacobian from the step's iterates)")),
-        solid,
-    )?;
-    stage(
-        r,
-        NodeSpec::new("coupled.rasterize", "coupled stage: the solids' samples onto the faces as solid fraction, drag and solid velocity (conserving volume, drag and momentum), and lift's reaction")
-            .input("step", "coupled_step", "the step's start")
-            .input("exchange", "coupled_exchange", "the samples")
-            .input("solid", "coupled_solid", "the solid iterate (sample velocities)")
-            .output("faces", "coupled_fluid", "u* with the solids rasterized")
-            .param(ParamSpec::float("max_solid_fraction", 0.9).gt(0.0).lt(1.0).doc("cap on a face's solid fraction, so every face keeps some fluid")),
-        rasterize,
-    )?;
-    stage(
-        r,
-        NodeSpec::new("coupled.pressure", "coupled stage: the porous pressure solve (MIC(0)-preconditioned CG) with the solids prescribed, and the velocity update")
-            .input("step", "coupled_step", "the step's start")
-            .input("faces", "coupled_fluid", "u* with the solids rasterized")
-            .output("fluid", "coupled_fluid", "the projected fluid")
-            .param(ParamSpec::float("tolerance", 1e-8).gt(0.0).unit("1/s").doc("largest divergence of the mixture flux after the solve"))
-            .param(ParamSpec::int("max_iterations", 2000).ge(1.0).doc("CG iteration limit")),
-        pressure,
-    )?;
-    stage(
-        r,
-        NodeSpec::new("coupled.update", "coupled stage: the next iterate and the convergence test (newton: velocities changed by less than the tolerance after at least two iterations)")
-            .input("step", "coupled_step", "the step's start")
-            .input("iterate", "coupled", "the coupling iterate")
-            .input("solid", "coupled_solid", "the new solid iterate")
-            .input("fluid", "coupled_fluid", "the new fluid iterate")
-            .output("iterate", "coupled", "the next iterate")
-            .output("converged", "bool", "true when the coupling has converged (or the method makes one pass)")
-            .output("residual", "float", "largest change of a solid or fluid velocity [m/s]")
-            .param(ParamSpec::float("tolerance", 1e-6).gt(0.0).unit("m/s").doc("coupling tolerance")),
-        update,
-    )?;
-    stage(
-        r,
-        NodeSpec::new(
-            "coupled.finish",
-            "coupled stage, once per step: the converged iterate becomes the frame's state",
-        )
-        .input("iterate", "coupled", "the converged iterate")
-        .output("state", "coupled", "the state at this frame"),
-        finish,
-    )?;
-    r.register(
-        NodeSpec::new("coupled.scene", "the scene of a coupled state: simulated elements at their positions (with a velocity channel)")
-            .input("state", "coupled", "the coupled state")
-            .output("scene", "scene", "the elements at this frame"),
-        |_| {
-            Ok(Kernel::from_fn(|cx| {
-                let v = cx.input("state")?;
-                let s = get::<CoupledState>(&v, "state")?;
-                let scene: Scene = s.compiled.scene_at(&s.scene, &s.sim.solid);
-                cx.set("scene", Value::new(scene));
-                Ok(())
-            }))
-        },
-    )?;
-    r.register(
-        NodeSpec::new(
-            "coupled.probe",
-            "reads the fluid of a coupled state: the velocity and pressure at a point, and the largest speed",
-        )
-        .input("state", "coupled", "the coupled state")
-        .output(
-            "velocity",
-            "vec3",
-            "fluid velocity at the point [m/s] (zero without fluid)",
-        )
-        .output("pressure", "float", "pressure of the cell holding the point [Pa], relative to hydrostatic (the grid solves for p − ρ g·x; zero without fluid)")
-        .output("max_speed", "float", "largest face speed [m/s]")
-        .param(
-            ParamSpec::vec3("point", [0.0; 3])
-                .unit("m")
-                .doc("where to sample"),
-        ),
-        |_| {
-            Ok(Kernel::from_fn(|cx| {
-                let v = cx.input("state")?;
-                let s = get::<CoupledState>(&v, "state")?;
-                let p = cx.params().vec3("point")?;
-                let (vel, pressure, max) = match &s.fluid {
-                    Some(g) => (
-                        g.velocity_at(p),
-                        g.pressure_at(p),
-                        g.vel.iter().flatten().fold(0.0f64, |m, u| m.max(u.abs())),
-                    ),
-                    None => ([0.0; 3], 0.0, 0.0),
-                };
-                cx.set("velocity", vel);
-                cx.set("pressure", pressure);
-                cx.set("max_speed", max);
-                Ok(())
-            }))
-        },
-    )?;
-    r.register(
-        NodeSpec::new(
-            "coupled.momentum",
-            "momentum diagnostics of a coupled state: the solids', the fluid's, and what the last step's coupling gave the fluid (which the solids' change balances: drag and pressure are internal)",
-        )
-        .input("state", "coupled", "the coupled state")
-        .output("solid", "vec3", "Σ m v over the simulated vertices [kg·m/s]")
-        .output("fluid", "vec3", "Σ ρ α u Δx³ over the grid's distinct faces [kg·m/s] (zero without fluid)")
-        .output("exchange", "vec3", "Σ ρ α (u − u*) Δx³ over the last step [kg·m/s], u* the advected fluid it started from (zero for one-way coupling)"),
-        |_| {
-            Ok(Kernel::from_fn(|cx| {
-                let v = cx.input("state")?;
-                let s = get::<CoupledState>(&v, "state")?;
-                let sys = &s.compiled.system;
-                let mut solid = [0.0; 3];
-                for (m, v) in sys.mass.iter().zip(&s.sim.solid.v) {
-                    for k in 0..3 {
-                        solid[k] += m * v[k];
-                    }
-                }
-                let rho = settings(&s.compiled).fluid.density;
-                let fluid = s.fluid.as_ref().map_or([0.0; 3], |g| g.momentum(rho));
-                cx.set("solid", solid);
-                cx.set("fluid", fluid);
-                cx.set("exchange", s.exchange);
-                Ok(())
-            }))
-        },
-    )?;
-    r.register_subgraph("solver.coupled", SOLVER_COUPLED)
 }

@@ -5,6 +5,7 @@ mod behaviors;
 mod checkpoint;
 mod convert;
 mod coupled;
+mod coupled_nodes;
 mod geo;
 mod measure;
 mod output;
@@ -26,7 +27,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
     behaviors::register(r)?;
     xform::register(r)?;
     measure::register(r)?;
-    coupled::register(r)?;
+    coupled_nodes::register(r)?;
     output::register(r)?;
     solver::register(r)
 }

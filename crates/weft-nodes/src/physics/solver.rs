@@ -32,6 +32,8 @@ struct SolidSolver {
     compiled: Option<Arc<Compiled>>,
     /// The graph's stop handle the stepper was given.
     interrupt: Option<weft_graph::Interrupt>,
+    /// Steps and Newton iterations over every frame stepped (`frames` keeps the last 1024).
+    totals: [u64; 2],
 }
 
 fn settings(p: &Params, max_bytes: u64) -> Result<StepperSettings, weft_graph::ParamError> {
@@ -103,6 +105,7 @@ impl Step for SolidSolver {
         }
         self.compiled = Some(compiled.clone());
         self.frames.clear();
+        self.totals = [0; 2];
         let params = cx.params().clone();
         let st = settings(&params, 0)?;
         let per_frame = weft_sim::estimate::solid_step_seconds(&compiled, st.solver.method)
@@ -152,6 +155,8 @@ impl Step for SolidSolver {
         if self.frames.len() == 1024 {
             self.frames.pop_front();
         }
+        self.totals[0] += stats.steps as u64;
+        self.totals[1] += stats.newton_iterations as u64;
         self.frames.push_back((frame, stats));
         Ok(Value::new(SolverState {
             compiled: prev.compiled.clone(),
@@ -225,6 +230,8 @@ impl Step for SolidSolver {
             "terms": c.map(|c| serde_json::json!(c.terms)),
             "warnings": c.map(|c| c.warnings.clone()),
             "solid_frames": frames,
+            "total_steps": self.totals[0],
+            "total_newton_iterations": self.totals[1],
         }))
     }
 }
@@ -241,6 +248,6 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             .param(ParamSpec::float("tolerance", 1e-6).gt(0.0).unit("m/s").doc("Newton stops when a further iteration would change velocities by less"))
             .param(ParamSpec::int("max_iterations", 50).ge(1.0).le(10_000.0).doc("Newton iteration limit per step"))
             .param(ParamSpec::int("max_retries", 4).ge(0.0).le(16.0).doc("levels of step halving when a step fails")),
-        |_| Ok(Kernel::Step(Box::new(SolidSolver { stepper: None, frames: VecDeque::new(), compiled: None, interrupt: None }))),
+        |_| Ok(Kernel::Step(Box::new(SolidSolver { stepper: None, frames: VecDeque::new(), compiled: None, interrupt: None, totals: [0; 2] }))),
     )
 }

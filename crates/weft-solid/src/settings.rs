@@ -1,0 +1,114 @@
+//! What a step is asked (method, tolerance, iteration limit), what it reports, and why it
+//! can fail.
+
+use crate::system::SystemError;
+
+/// How a step is integrated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    /// Symplectic Euler: cheap, conditionally stable (h below ~2/ω_max).
+    Explicit,
+    /// One projected Newton step from x⁰ + h v⁰ (Baraff–Witkin style linearized implicit Euler).
+    Linearized,
+    /// Projected Newton iterated to tolerance: implicit Euler solved exactly.
+    Newton,
+}
+
+/// Step settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Settings {
+    /// Integration method.
+    pub method: Method,
+    /// Newton stops when ‖Δx‖∞ / h, the largest velocity change a further iteration would make,
+    /// is below this [m/s] (for [`Integrator::solve_static`]: ‖Δx‖∞ in metres).
+    pub tolerance: f64,
+    /// Newton iteration limit.
+    pub max_iterations: usize,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            method: Method::Newton,
+            tolerance: 1e-6,
+            max_iterations: 50,
+        }
+    }
+}
+
+/// What one step did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct StepStats {
+    /// Newton iterations (1 for linearized, 0 for explicit).
+    pub iterations: usize,
+    /// ‖Δx‖∞ / h per iteration [m/s].
+    pub residuals: Vec<f64>,
+    /// True when the tolerance was met (always for explicit and linearized).
+    pub converged: bool,
+    /// Step-length halvings in the line search, summed over iterations.
+    pub halvings: usize,
+    /// Seconds assembling gradients and Hessians.
+    pub assembly_seconds: f64,
+    /// Seconds in numeric factorization.
+    pub factor_seconds: f64,
+    /// Seconds in triangular solves.
+    pub solve_seconds: f64,
+}
+
+/// Why a step failed. The state is left as it was before the step.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum StepError {
+    /// The system is inconsistent (see [`SystemError`]).
+    #[error(transparent)]
+    System(#[from] SystemError),
+    /// A NaN or infinity appeared.
+    ///
+    /// Explicit integration of a stiff system with too large a step.
+    #[error(
+        "non-finite values at iteration {iteration} (the step is unstable or the input is degenerate)"
+    )]
+    NonFinite {
+        /// Newton iteration (0 for explicit).
+        iteration: usize,
+    },
+    /// Newton hit its iteration limit.
+    ///
+    /// A tolerance of 1e-14 m/s cannot be met in f64.
+    #[error(
+        "Newton did not converge in {iterations} iterations (residual {residual:e} m/s, tolerance {tolerance:e})"
+    )]
+    NotConverged {
+        /// Iterations done.
+        iterations: usize,
+        /// Last ‖Δx‖∞/h.
+        residual: f64,
+        /// The tolerance asked for.
+        tolerance: f64,
+    },
+    /// The sparse Cholesky factorization failed (the matrix was not positive definite).
+    #[error("sparse Cholesky failed: {0}")]
+    Factorization(String),
+    /// The system's matrix or its factor would not fit in the memory allowed
+    /// ([`Integrator::new_within`]); nothing large was allocated.
+    #[error(
+        "{what} needs about {need_gib:.2} GiB, more than the {limit_gib:.2} GiB available; use fewer vertices (a coarser mesh, fewer strands or segments)"
+    )]
+    TooLarge {
+        /// What would not fit.
+        what: &'static str,
+        /// Estimated need [GiB].
+        need_gib: f64,
+        /// The limit [GiB].
+        limit_gib: f64,
+    },
+    /// The stop check ([`Integrator::set_stop`]) asked the step to end.
+    #[error("stopped at Newton iteration {iteration}")]
+    Interrupted {
+        /// Newton iteration at which the step stopped (0-based).
+        iteration: usize,
+    },
+}
+
+/// Asked once per Newton iteration (and per explicit step): true when the step should end
+/// with [`StepError::Interrupted`] (Ctrl-C, a time limit, a host's cancel).
+pub type StopCheck = std::sync::Arc<dyn Fn() -> bool + Send + Sync>;
