@@ -1,5 +1,8 @@
 //! USD ASCII (`.usda`) export of animated meshes and curves.
 //!
+//! (About 550 lines of writer; the rest of the file is its tests, which check the text
+//! against the format line by line.)
+//!
 //! A [`UsdaScene`] collects prims (triangle meshes as `Mesh`, strands as linear
 //! `BasisCurves`) with fixed topology, then per-frame positions as time samples, and writes one
 //! `.usda` layer: a `World` Xform (the default prim) holding every prim, with `points` (and
