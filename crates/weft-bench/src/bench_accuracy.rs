@@ -9,6 +9,11 @@
 //!   blown up;
 //! - **Newton tolerance**: 10⁻¹…10⁻⁸ m/s at three steps: error, iterations and wall time.
 //!
+//! And the clamped strand (`scenes/strand.json`) over segments, before and after the root
+//! clamp: its static tip deflection against the elastica, with `root_vertices: 2` (the
+//! clamp: second order) and with the first two vertices held (how it was clamped before:
+//! first order), charted as `accuracy_clamp`.
+//!
 //! Theory fixes what `--quick` asserts: implicit Euler (`newton`, and `linearized`, which
 //! differs from it at second order) and symplectic Euler (`explicit`, where it is stable)
 //! converge at first order; symplectic Euler is stable only below h = 2/ω (ω = √k here), so
@@ -233,10 +238,12 @@ pub fn suite(quick: bool, out: &Path) -> Result<Summary, String> {
             its.len() == tolerances.len() && its.windows(2).all(|w| w[1] >= w[0]),
         ));
     }
+    let clamp_runs = clamp_sweep(quick, &mut orders, &mut checks);
     sweep::print_checks(&checks);
     let summary = Summary { orders, checks };
     let mut all = runs.clone();
     all.extend(tol_runs.iter().cloned());
+    all.extend(clamp_runs.iter().cloned());
     sweep::write_runs(
         out,
         "accuracy",
@@ -266,6 +273,19 @@ pub fn suite(quick: bool, out: &Path) -> Result<Summary, String> {
         "Pendulum (k = 1e6 N): error at 1 s against step size",
         &out.join("accuracy_error_step"),
     )?;
+    let clamp_orders: Vec<(String, f64)> = summary
+        .orders
+        .iter()
+        .filter(|(m, _)| m == "clamped" || m == "two_pins")
+        .cloned()
+        .collect();
+    crate::charts::error_vs(
+        crate::charts::Across::Size,
+        &clamp_runs,
+        &clamp_orders,
+        "Clamped strand (0.1 m, 1 GPa, r = 0.5 mm): tip deflection error against segment length",
+        &out.join("accuracy_clamp"),
+    )?;
     let map_runs: Vec<Run> = runs
         .iter()
         .filter(|r| stiffnesses.contains(&r.param))
@@ -284,4 +304,71 @@ pub fn suite(quick: bool, out: &Path) -> Result<Summary, String> {
         out.display()
     );
     Ok(summary)
+}
+
+/// The clamped strand's static tip deflection against the elastica over segments, with the
+/// root clamp (`clamped`: `root_vertices: 2`) and as clamps were made before it
+/// (`two_pins`: the first two vertices held, which clamps the tangent half a segment out).
+/// Theory: the clamp is second order and within 0.5 % at 40 segments; two pins are first
+/// order (their beam is l/2 short: the error is −2l/L).
+fn clamp_sweep(
+    quick: bool,
+    orders: &mut Vec<(String, f64)>,
+    checks: &mut Vec<(String, bool)>,
+) -> Vec<Run> {
+    use crate::scenes_strand::Root;
+    let segments: &[usize] = if quick {
+        &[10, 20, 40]
+    } else {
+        &[10, 20, 40, 80, 160]
+    };
+    let mut runs = Vec::new();
+    for root in [Root::TwoPins, Root::Clamped] {
+        for &n in segments {
+            runs.push(crate::scenes_resolution::strand_cantilever(n, root));
+        }
+    }
+    println!("\nclamped strand cantilever: relative error of the tip deflection");
+    println!("| segments | two pins (before) | clamped root |");
+    println!("|---:|---:|---:|");
+    let at = |m: &str, n: usize| {
+        runs.iter().find(|r: &&Run| {
+            r.method == m && (r.dx * n as f64 - crate::scenes_strand::LENGTH).abs() < 1e-12
+        })
+    };
+    for &n in segments {
+        let cell = |m: &str| at(m, n).map_or("-".into(), |r| format!("{:.2e}", r.error));
+        println!("| {n} | {} | {} |", cell("two_pins"), cell("clamped"));
+    }
+    for m in ["two_pins", "clamped"] {
+        let pts: Vec<(f64, f64)> = runs
+            .iter()
+            .filter(|r| r.method == m && r.error.is_finite())
+            .map(|r| (r.dx, r.error))
+            .collect();
+        let order = if pts.len() >= 2 {
+            sweep::fitted_order(&pts)
+        } else {
+            f64::NAN
+        };
+        orders.push((m.to_string(), order));
+        let (lo, hi) = if m == "clamped" {
+            (1.8, 2.3)
+        } else {
+            (0.8, 1.2)
+        };
+        checks.push((
+            format!("{m} strand cantilever: order {order:.3} in {lo}–{hi}"),
+            (lo..=hi).contains(&order),
+        ));
+    }
+    let e40 = at("clamped", 40).map_or(f64::NAN, |r| r.error);
+    checks.push((
+        format!(
+            "clamped strand cantilever within 0.5 % at 40 segments ({:.3} %)",
+            e40 * 100.0
+        ),
+        e40 < 5e-3,
+    ));
+    runs
 }

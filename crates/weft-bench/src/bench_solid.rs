@@ -87,22 +87,17 @@ fn cloth(n: usize) -> Vec<SceneElement> {
         target: "cloth".into(),
         vertices: vec![0, n as u32 - 1],
         mode: AttachmentMode::Hard,
+        clamps: Vec::new(),
     });
     vec![c, pins]
 }
 
 fn hair(count: usize, vertices: usize) -> Vec<SceneElement> {
     let curves = strands_on_sphere([0.0, 1.6, 0.0], 0.1, count, vertices - 1, 0.3, 80.0);
-    let roots = (0..curves.len())
-        .flat_map(|k| [curves.offsets[k], curves.offsets[k] + 1])
-        .collect();
+    let roots = Attachment::curve_roots("hair", &curves, 2, AttachmentMode::Hard);
     let h = SceneElement::new("hair", ElementKind::Hair, Geometry::Curves(curves));
     let mut pins = SceneElement::new("roots", ElementKind::Attachment, Geometry::None);
-    pins.secs.insert(Attachment {
-        target: "hair".into(),
-        vertices: roots,
-        mode: AttachmentMode::Hard,
-    });
+    pins.secs.insert(roots);
     vec![h, pins]
 }
 

@@ -15,7 +15,8 @@ fn method_color(m: &str) -> RGBColor {
     match m {
         "explicit" | "staggered" => RGBColor(214, 39, 40),
         "linearized" | "one_way" => RGBColor(31, 119, 180),
-        "newton" => RGBColor(44, 160, 44),
+        "newton" | "clamped" => RGBColor(44, 160, 44),
+        "two_pins" => RGBColor(214, 39, 40),
         // Resolution sweeps name curves by scene.
         "cantilever" => RGBColor(148, 103, 189),
         "catenary" => RGBColor(140, 86, 75),

@@ -23,6 +23,7 @@ pub mod graphs;
 mod row;
 pub mod scenes_coupled;
 mod scenes_resolution;
+pub mod scenes_strand;
 mod sweep;
 
 pub use bench::{BenchArgs, chain_graph, fan_in_graph, run};

@@ -1,10 +1,10 @@
 //! Verification scenes swept over resolution (`weft bench convergence`): each returns a
 //! [`Run`] whose `dx` is its segment or cell size and whose error is relative to an
 //! analytic reference (VERIFY.md):
-//! - **cantilever**: a steel rod (0.5 m, r = 1 mm) clamped at one end, sagging under its own
-//!   weight, solved statically; δ = qL⁴/(8EI) with the clamp half a segment behind the
-//!   second pinned vertex (L + l/2; see the weft-solid test). Expected order 2 (lumped
-//!   masses, Voronoi curvature).
+//! - **cantilever**: the strand of [`crate::scenes_strand`] (0.1 m, clamped at its root by the
+//!   attachment node), sagging under its own weight, solved statically; δ = qL⁴/(8EI) for
+//!   the strand's own length. Expected order 2 (lumped masses, Voronoi curvature, the root
+//!   clamp's half-segment term).
 //! - **catenary**: a near-inextensible chain (EA = 10⁵ N, strain ~10⁻⁶) of length 1.2 m
 //!   hung between x = ±0.5 m; its mid-point sag against c(cosh(a/c) − 1), 2c sinh(a/c) = L.
 //!   Expected order 2 (straight segments on a smooth curve).
@@ -51,17 +51,41 @@ fn relative((measured, reference): (f64, f64)) -> f64 {
     (measured - reference).abs() / reference
 }
 
-/// The rod cantilever with `n` segments ([`solid::cantilever_tip`]).
+/// The clamped strand with `n` segments ([`crate::scenes_strand::cantilever`]).
 pub fn cantilever(n: usize) -> Run {
     let t = Instant::now();
-    let error = solid::cantilever_tip(n).ok().map(relative);
+    let error = crate::scenes_strand::cantilever(n, crate::scenes_strand::Root::Clamped)
+        .ok()
+        .map(relative);
     run(
         "cantilever",
-        0.5 / n as f64,
+        crate::scenes_strand::LENGTH / n as f64,
         error,
         t.elapsed().as_secs_f64(),
         1e-2,
     )
+}
+
+/// The strand cantilever with `n` segments held as `root`, for the before/after chart of
+/// `weft bench accuracy`: the scene is named `cantilever`, the method the root's (`clamped`,
+/// `two_pins`, the clamp before issue 20).
+pub fn strand_cantilever(n: usize, root: crate::scenes_strand::Root) -> Run {
+    use crate::scenes_strand::Root;
+    let t = Instant::now();
+    let error = crate::scenes_strand::cantilever(n, root).ok().map(relative);
+    let mut r = run(
+        "cantilever",
+        crate::scenes_strand::LENGTH / n as f64,
+        error,
+        t.elapsed().as_secs_f64(),
+        5e-3,
+    );
+    r.method = match root {
+        Root::Clamped => "clamped",
+        Root::TwoPins => "two_pins",
+        Root::Pinned => "pinned",
+    };
+    r
 }
 
 /// The catenary with `n` segments, `n` even, EA = 10⁵ N ([`solid::catenary_sag`]).

@@ -270,23 +270,25 @@ fn quick_suite(suite: &str, rows: usize, charts: &[&str]) {
 
 /// `weft bench accuracy --quick`: first order within 0.8–1.2 for every method; explicit
 /// blows up above 1.2 × its stable step 2/ω and holds below 0.5 × it; newton never blows
-/// up; the Newton tolerance's checks. Runs: 4 stiffnesses (three mapped and the convergence
-/// one) × 3 methods × 5 steps, and 3 tolerances at one step.
+/// up; the Newton tolerance's checks; the clamped strand at second order and the two-pin
+/// clamp at first. Runs: 4 stiffnesses (three mapped and the convergence one) × 3 methods ×
+/// 5 steps, 3 tolerances at one step, and 2 clamps × 3 resolutions.
 #[test]
 fn bench_accuracy_quick_asserts_theory_and_writes_runs_and_charts() {
     quick_suite(
         "accuracy",
-        4 * 3 * 5 + 3,
+        4 * 3 * 5 + 3 + 2 * 3,
         &[
             "accuracy_error_time",
             "accuracy_error_step",
             "accuracy_stability",
             "accuracy_tolerance",
+            "accuracy_clamp",
         ],
     );
 }
 
-/// `weft bench convergence --quick`: the orders of the cantilever, catenary and
+/// `weft bench convergence --quick`: the orders of the clamped strand, catenary and
 /// Taylor–Green in their bands, the shell strip within 0.5 %, the Darcy slab exact. Runs:
 /// 3 cantilevers, 3 catenaries, 2 strips, 2 membranes, 2 Taylor–Green, 2 slabs.
 #[test]

@@ -301,8 +301,49 @@ pub struct Attachment {
     pub vertices: Vec<u32>,
     /// Hard or spring.
     pub mode: AttachmentMode,
+    /// Clamps, each (root, next) in the target's indices: the strand leaves `root` along the
+    /// direction it has towards `next` at the start, turned with the transform. The root is
+    /// normally also in `vertices`; `next` stays free (hair only: see
+    /// `weft_solid::energy::RodClamp`).
+    pub clamps: Vec<[u32; 2]>,
 }
 sec_impl!(Attachment, "attachment");
+
+impl Attachment {
+    /// The roots of every curve, `root_vertices` (k ≥ 1) vertices a root. k = 1: the first
+    /// vertex is held and the strand turns freely about it (a pin joint). k ≥ 2: the first
+    /// k − 1 vertices are held and the strand is clamped at the last of them, leaving it along
+    /// the direction it starts with; the next vertex is free, so a strand clamped with
+    /// k = 2 bends over its whole length. (Holding k vertices without a clamp would clamp the
+    /// tangent half a segment further out: a strand too stiff by an amount that changes with
+    /// its resolution.) Curves too short for a clamp are held without one.
+    pub fn curve_roots(
+        target: &str,
+        curves: &crate::Curves,
+        root_vertices: u32,
+        mode: AttachmentMode,
+    ) -> Attachment {
+        let k = root_vertices.max(1);
+        let held = if k == 1 { 1 } else { k - 1 };
+        let mut vertices = Vec::new();
+        let mut clamps = Vec::new();
+        for c in 0..curves.len() {
+            let r = curves.range(c);
+            let (start, end) = (r.start as u32, r.end as u32);
+            vertices.extend(start..(start + held).min(end));
+            let root = start + held - 1;
+            if k >= 2 && root + 1 < end {
+                clamps.push([root, root + 1]);
+            }
+        }
+        Attachment {
+            target: target.into(),
+            vertices,
+            mode,
+            clamps,
+        }
+    }
+}
 
 #[cfg(test)]
 mod tests {

@@ -4,12 +4,15 @@
 use crate::builder::SystemBuilder;
 use crate::error::SimError;
 use nalgebra::Vector3;
+use std::collections::BTreeSet;
 use std::fmt::Debug;
 use std::sync::Arc;
 use weft_scene::{
     Attachment, AttachmentMode, Density, DiscreteShell, ElementKind, Geometry, Rod, SceneElement,
 };
-use weft_solid::energy::{Membrane, MembraneMaterial, RodBend, RodStretch, Spring, shell_bending};
+use weft_solid::energy::{
+    Membrane, MembraneMaterial, RodBend, RodClamp, RodStretch, Spring, shell_bending,
+};
 
 /// Simulation logic for the elements a Behavior applies to.
 pub trait Behavior: Send + Sync + Debug {
@@ -228,17 +231,9 @@ impl Behavior for RodMaterial {
             let rod = e.secs.get::<Rod>().cloned().unwrap_or_default();
             let density = e.secs.get::<Density>().cloned().unwrap_or_default();
             let name = e.name.as_str();
-            positive(name, "rod.youngs_modulus", rod.youngs_modulus)?;
-            positive(name, "rod.radius", rod.radius)?;
+            let ei_bend = rod_bending_stiffness(name, &rod)?;
             positive(name, "rod.stretch_scale", rod.stretch_scale)?;
             positive(name, "density.line_density", density.line_density)?;
-            if !(rod.bend_scale >= 0.0 && rod.bend_scale.is_finite()) {
-                return Err(bad(
-                    name,
-                    "rod.bend_scale",
-                    format!("must be >= 0, got {}", rod.bend_scale),
-                ));
-            }
             if !(rod.damping >= 0.0 && rod.damping.is_finite()) {
                 return Err(bad(
                     name,
@@ -250,19 +245,6 @@ impl Behavior for RodMaterial {
             let off = b.offset(ei).expect("hair elements have a vertex range");
             let area = std::f64::consts::PI * rod.radius * rod.radius;
             let ea = rod.stretch_scale * rod.youngs_modulus * area;
-            if !(rod.bend_stiffness >= 0.0 && rod.bend_stiffness.is_finite()) {
-                return Err(bad(
-                    name,
-                    "rod.bend_stiffness",
-                    format!("must be >= 0, got {}", rod.bend_stiffness),
-                ));
-            }
-            let ei = if rod.bend_stiffness > 0.0 {
-                rod.bend_stiffness
-            } else {
-                rod.youngs_modulus * area * rod.radius * rod.radius / 4.0
-            };
-            let ei_bend = rod.bend_scale * ei;
             for k in 0..curves.len() {
                 let r = curves.range(k);
                 let pts: Vec<Vector3<f64>> = rest[r.clone()].iter().map(|&p| v3(p)).collect();
@@ -305,6 +287,28 @@ impl Behavior for RodMaterial {
     }
 }
 
+/// The bending stiffness a rod's bending terms use, bend_scale·EI [N m²]: EI is the Rod
+/// SEC's `bend_stiffness` when set, else E·πr⁴/4. Checks the fields it reads.
+fn rod_bending_stiffness(name: &str, rod: &Rod) -> Result<f64, SimError> {
+    positive(name, "rod.youngs_modulus", rod.youngs_modulus)?;
+    positive(name, "rod.radius", rod.radius)?;
+    for (field, v) in [
+        ("rod.bend_scale", rod.bend_scale),
+        ("rod.bend_stiffness", rod.bend_stiffness),
+    ] {
+        if !(v >= 0.0 && v.is_finite()) {
+            return Err(bad(name, field, format!("must be >= 0, got {v}")));
+        }
+    }
+    let area = std::f64::consts::PI * rod.radius * rod.radius;
+    let ei = if rod.bend_stiffness > 0.0 {
+        rod.bend_stiffness
+    } else {
+        rod.youngs_modulus * area * rod.radius * rod.radius / 4.0
+    };
+    Ok(rod.bend_scale * ei)
+}
+
 /// Uniform gravity on every simulated vertex.
 #[derive(Clone, Debug)]
 pub struct Gravity {
@@ -321,6 +325,99 @@ impl Behavior for Gravity {
     }
     fn apply(&self, _scene: &[SceneElement], b: &mut SystemBuilder) -> Result<(), SimError> {
         b.system.gravity += v3(self.acceleration);
+        Ok(())
+    }
+}
+
+/// Which vertices of an element a [`Load`] pushes.
+#[derive(Clone, Debug, PartialEq)]
+pub enum LoadVertices {
+    /// Every vertex.
+    All,
+    /// The last vertex of every curve (a tip load on each strand).
+    CurveTips,
+    /// These indices.
+    Listed(Vec<u32>),
+}
+
+/// A constant force on chosen vertices of one element: a tip load, a weight hung on a
+/// point, a steady push.
+#[derive(Clone, Debug)]
+pub struct Load {
+    /// Name of the loaded element.
+    pub element: String,
+    /// Which of its vertices.
+    pub vertices: LoadVertices,
+    /// Force on each of them [N].
+    pub force: [f64; 3],
+}
+
+impl Behavior for Load {
+    fn name(&self) -> &'static str {
+        "load"
+    }
+    fn reads(&self) -> &'static [&'static str] {
+        &[]
+    }
+    fn apply(&self, scene: &[SceneElement], b: &mut SystemBuilder) -> Result<(), SimError> {
+        let f = v3(self.force);
+        if !f.iter().all(|c| c.is_finite()) {
+            return Err(bad(
+                "(tree)",
+                "load.force",
+                format!("must be finite, got {:?}", self.force),
+            ));
+        }
+        let Some(ei) = scene.iter().position(|e| e.name == self.element) else {
+            return Err(bad(
+                "(tree)",
+                "load.element",
+                format!("no element named '{}' in the scene", self.element),
+            ));
+        };
+        let e = &scene[ei];
+        let Some(off) = b.offset(ei) else {
+            return Err(bad(
+                &e.name,
+                "load.element",
+                format!("'{}' is not simulated (a {})", e.name, e.kind.name()),
+            ));
+        };
+        let n = e.vertex_count();
+        let vertices: Vec<u32> = match (&self.vertices, &*e.geometry) {
+            (LoadVertices::All, _) => (0..n as u32).collect(),
+            (LoadVertices::CurveTips, Geometry::Curves(c)) => (0..c.len())
+                .filter(|&k| !c.range(k).is_empty())
+                .map(|k| c.range(k).end as u32 - 1)
+                .collect(),
+            (LoadVertices::CurveTips, _) => {
+                return Err(bad(
+                    &e.name,
+                    "load.select",
+                    format!("'{}' has no curves to take tips from", e.name),
+                ));
+            }
+            (LoadVertices::Listed(v), _) => {
+                // A vertex listed twice is loaded once.
+                let mut v = v.clone();
+                v.sort_unstable();
+                v.dedup();
+                v
+            }
+        };
+        if let Some(v) = vertices.iter().find(|&&v| v as usize >= n) {
+            return Err(bad(
+                &e.name,
+                "load.vertices",
+                format!("vertex {v} is out of range ('{}' has {n} vertices)", e.name),
+            ));
+        }
+        if b.system.forces.is_empty() {
+            b.system.forces = vec![Vector3::zeros(); b.system.mass.len()];
+        }
+        for v in vertices {
+            b.system.forces[(v + off) as usize] += f;
+        }
         Ok(())
     }
 }
@@ -423,9 +520,82 @@ impl Behavior for AttachmentBehavior {
                 };
                 b.pin(ai, g, spring, scene[ai].transform);
             }
+            if !att.clamps.is_empty() {
+                clamps(scene, b, ai, ti, off).map_err(fail)?;
+            }
         }
         Ok(())
     }
+}
+
+/// The clamps of attachment `ai` on element `ti` (first global vertex `off`): a
+/// [`RodClamp`] each, along the strand's direction at the start, stiffness bend_scale·EI
+/// over the first free segment's rest length (see `RodClamp` for why).
+fn clamps(
+    scene: &[SceneElement],
+    b: &mut SystemBuilder,
+    ai: usize,
+    ti: usize,
+    off: u32,
+) -> Result<(), String> {
+    let (a, e) = (&scene[ai], &scene[ti]);
+    let Some(att) = a.secs.get::<Attachment>() else {
+        return Ok(());
+    };
+    let Geometry::Curves(curves) = &*e.geometry else {
+        return Err(format!(
+            "clamps hold strands, but '{}' is a {} (attach its vertices without a clamp)",
+            e.name,
+            e.kind.name()
+        ));
+    };
+    let rod = e.secs.get::<Rod>().cloned().unwrap_or_default();
+    let ei = rod_bending_stiffness(&e.name, &rod).map_err(|err| err.to_string())?;
+    if ei == 0.0 {
+        // A strand without bending stiffness has nothing to clamp: it hangs from its pins.
+        return Ok(());
+    }
+    let rest = rest_positions(e, &rod.rest_channel).map_err(|err| err.to_string())?;
+    let n = e.vertex_count();
+    let mut seen = BTreeSet::new();
+    for &[root, next] in &att.clamps {
+        let (r, x) = (root as usize, next as usize);
+        if r >= n || x >= n {
+            return Err(format!(
+                "clamp ({root}, {next}) is out of range (element '{}' has {n} vertices)",
+                e.name
+            ));
+        }
+        let same_curve = (0..curves.len()).any(|k| {
+            let c = curves.range(k);
+            c.contains(&r) && c.contains(&x)
+        });
+        if x != r + 1 || !same_curve {
+            return Err(format!(
+                "clamp ({root}, {next}): the second vertex must follow the first on the same strand"
+            ));
+        }
+        if !seen.insert(r) {
+            continue;
+        }
+        let l = (v3(rest[x]) - v3(rest[r])).norm();
+        let (g, gn) = (r + off as usize, x + off as usize);
+        let dir = b.x[gn] - b.x[g];
+        if !(l > 1e-12 && dir.norm() > 1e-12) {
+            return Err(format!(
+                "clamp ({root}, {next}): the strand's first segment has zero length"
+            ));
+        }
+        let tangent = dir.normalize();
+        b.system.elements.clamps.push(RodClamp {
+            v: [g as u32, gn as u32],
+            tangent,
+            k: ei / l,
+        });
+        let index = b.system.elements.clamps.len() - 1;
+        b.clamp(ai, index, tangent, a.transform);
+    }
+    Ok(())
 }
 
 /// Fluid drag: every hair segment (cross-section from its Rod SEC's radius) and cloth triangle

@@ -1,7 +1,7 @@
 //! Compiling (scene, Behavior tree) into a solid system with exactly the terms the scene needs.
 
 use crate::behavior::BehaviorTree;
-pub use crate::builder::{Pin, SystemBuilder};
+pub use crate::builder::{ClampPin, Pin, SystemBuilder};
 use crate::error::SimError;
 use nalgebra::Vector3;
 use std::collections::{BTreeMap, BTreeSet};
@@ -20,6 +20,8 @@ pub struct Compiled {
     pub ranges: Vec<Option<Range<usize>>>,
     /// Attached vertices.
     pub pins: Vec<Pin>,
+    /// Clamped roots (their directions follow the attachments' rotations).
+    pub clamps: Vec<ClampPin>,
     /// Problems that do not stop the simulation (unread SECs, non-manifold edges).
     pub warnings: Vec<String>,
     /// Terms in the system, by kind: what the scene asked for and nothing else.
@@ -113,6 +115,17 @@ impl Compiled {
                 system.elements.springs[k].target = x;
             }
         }
+        for c in &self.clamps {
+            let t = lerp(
+                from.get(c.attachment).copied().flatten(),
+                to.get(c.attachment).copied().flatten(),
+                s,
+            );
+            system.elements.clamps[c.clamp].tangent = match t {
+                Some(t) => t.transform_vector(&c.local),
+                None => c.local,
+            };
+        }
     }
 }
 
@@ -189,6 +202,7 @@ pub fn compile_within(
         x,
         ranges,
         pins: Vec::new(),
+        clamps: Vec::new(),
         warnings: Vec::new(),
         read: vec![BTreeSet::new(); scene.len()],
         drag_elements: Vec::new(),
@@ -273,6 +287,7 @@ pub fn compile_within(
         ("shell_midedges", el.midedges.len()),
         ("rod_stretches", el.stretches.len()),
         ("rod_bends", el.bends.len()),
+        ("rod_clamps", el.clamps.len()),
         ("springs", el.springs.len()),
         ("drag_elements", b.drag_elements.len()),
         ("pinned", b.system.pinned.iter().filter(|p| **p).count()),
@@ -283,6 +298,7 @@ pub fn compile_within(
         system: b.system,
         ranges: b.ranges,
         pins: b.pins,
+        clamps: b.clamps,
         warnings: b.warnings,
         terms,
         drag_elements: b.drag_elements,

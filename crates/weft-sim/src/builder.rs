@@ -20,6 +20,18 @@ pub struct Pin {
     pub spring: Option<usize>,
 }
 
+/// A clamped root and where its direction comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ClampPin {
+    /// Index of the clamp in `system.elements.clamps`.
+    pub clamp: usize,
+    /// Scene index of the attachment element (whose transform, if any, turns the direction).
+    pub attachment: usize,
+    /// The clamp's direction in the attachment transform's frame at the start (world when
+    /// it has none), unit.
+    pub local: Vector3<f64>,
+}
+
 /// Builds a system while Behaviors apply.
 pub struct SystemBuilder {
     /// The system so far.
@@ -28,6 +40,7 @@ pub struct SystemBuilder {
     pub x: Vec<Vector3<f64>>,
     pub(crate) ranges: Vec<Option<Range<usize>>>,
     pub(crate) pins: Vec<Pin>,
+    pub(crate) clamps: Vec<ClampPin>,
     pub(crate) warnings: Vec<String>,
     pub(crate) read: Vec<BTreeSet<&'static str>>,
     /// Elements that exchange momentum with a fluid (filled by [`crate::FluidDrag`]).
@@ -72,6 +85,25 @@ impl SystemBuilder {
             attachment,
             local,
             spring,
+        });
+    }
+    /// Records a clamp whose direction follows `transform`'s rotation; `tangent` is its
+    /// world direction at the start (unit).
+    pub fn clamp(
+        &mut self,
+        attachment: usize,
+        clamp: usize,
+        tangent: Vector3<f64>,
+        transform: Option<Transform>,
+    ) {
+        let local = match transform {
+            Some(t) => t.inverse_transform_vector(&tangent),
+            None => tangent,
+        };
+        self.clamps.push(ClampPin {
+            clamp,
+            attachment,
+            local,
         });
     }
     /// Records a warning for the run's report.

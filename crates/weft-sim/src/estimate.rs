@@ -26,7 +26,7 @@ pub fn solid_step_seconds(compiled: &Compiled, method: Method) -> f64 {
     match method {
         Method::Explicit => 0.5 * assembly,
         Method::Linearized => assembly + factor,
-        Method::Newton => iterations * (assembly + factor),
+        Method::Newton | Method::Static => iterations * (assembly + factor),
     }
 }
 

@@ -24,9 +24,11 @@ pub mod verify;
 
 pub use behavior::{
     AttachmentBehavior, Behavior, BehaviorTree, Damping, DiscreteShellMaterial, FluidDrag, Gravity,
-    RodMaterial,
+    Load, LoadVertices, RodMaterial,
 };
-pub use build::{Compiled, Pin, SYSTEM_BYTES_PER_VERTEX, SystemBuilder, compile, compile_within};
+pub use build::{
+    ClampPin, Compiled, Pin, SYSTEM_BYTES_PER_VERTEX, SystemBuilder, compile, compile_within,
+};
 pub use coupled::{
     CoupledError, CoupledSettings, CoupledStepper, Coupling, DragElement, DragShape, Exchange,
     Predicted,

@@ -22,6 +22,7 @@ fn pins(target: &str, vertices: Vec<u32>) -> SceneElement {
         target: target.into(),
         vertices,
         mode: AttachmentMode::Hard,
+        clamps: Vec::new(),
     });
     a
 }
@@ -239,6 +240,114 @@ fn hair_roots_follow_an_animated_transform() {
     }
 }
 
+/// A clamp turns with its attachment: a straight strand along +x, clamped at its root
+/// (`root_vertices: 2`), without gravity, solved statically while the transform turns 90°
+/// about z. The strand must turn rigidly with it (bending and stretch both vanish there):
+/// every vertex at the rotated start position to 1e-9 m (Newton stops at steps of 1e-11 m
+/// on positions of 0.1 m). Without the clamp turning, the strand would stay along +x, bent.
+/// `root_vertices: 3` holds two vertices and clamps at the second.
+#[test]
+fn a_clamped_root_turns_with_its_transform() {
+    let curves = weft_scene::Curves {
+        positions: (0..=8).map(|i| [0.0125 * i as f64, 0.0, 0.0]).collect(),
+        offsets: vec![0, 9],
+    };
+    let mut att = SceneElement::new("roots", ElementKind::Attachment, Geometry::None);
+    att.secs.insert(Attachment::curve_roots(
+        "hair",
+        &curves,
+        2,
+        AttachmentMode::Hard,
+    ));
+    att.transform = Some(weft_scene::Transform::identity());
+    let three = Attachment::curve_roots("hair", &curves, 3, AttachmentMode::Hard);
+    assert_eq!(
+        (three.vertices.clone(), three.clamps.clone()),
+        (vec![0, 1], vec![[1, 2]])
+    );
+    let one = Attachment::curve_roots("hair", &curves, 1, AttachmentMode::Hard);
+    assert_eq!((one.vertices.clone(), one.clamps.len()), (vec![0], 0));
+    let mut hair = SceneElement::new("hair", ElementKind::Hair, Geometry::Curves(curves));
+    hair.secs.insert(Rod {
+        youngs_modulus: 1e9,
+        radius: 5e-4,
+        ..Default::default()
+    });
+    let scene0 = vec![hair, att];
+    let tree = BehaviorTree {
+        behaviors: vec![Arc::new(RodMaterial), Arc::new(AttachmentBehavior)],
+    };
+    let c = Arc::new(compile(&scene0, &tree).unwrap());
+    assert_eq!((c.terms["rod_clamps"], c.terms["pinned"]), (1, 1));
+    let settings = StepperSettings {
+        substeps: 4,
+        solver: Settings {
+            method: weft_solid::Method::Static,
+            tolerance: 1e-11,
+            max_iterations: 100,
+        },
+        ..Default::default()
+    };
+    let mut s = SolidStepper::new(c, settings).unwrap();
+    let state = s.initial_state(&scene0);
+    let mut scene1 = scene0.clone();
+    let turn = nalgebra::UnitQuaternion::from_axis_angle(
+        &nalgebra::Vector3::z_axis(),
+        std::f64::consts::FRAC_PI_2,
+    );
+    scene1[1].transform = Some(weft_scene::Transform::from_parts(
+        nalgebra::Translation3::identity(),
+        turn,
+    ));
+    let (next, _) = s.advance(&state, &scene1, 1, 1.0 / 24.0).unwrap();
+    for (i, (x, x0)) in next.solid.x.iter().zip(&state.solid.x).enumerate() {
+        let want = turn * x0;
+        assert!((x - want).norm() < 1e-9, "vertex {i}: {x:?}, want {want:?}");
+    }
+}
+
+/// A load names its element and vertices; a wrong name or index is an error naming the
+/// field, and a tip load lands on each strand's last vertex only.
+#[test]
+fn a_load_pushes_the_vertices_it_names_and_refuses_others() {
+    let curves = strands_on_sphere([0.0; 3], 0.1, 3, 4, 0.1, 60.0);
+    let tips: Vec<usize> = (0..3).map(|k| curves.offsets[k + 1] as usize - 1).collect();
+    let hair = SceneElement::new("hair", ElementKind::Hair, Geometry::Curves(curves));
+    let load = |element: &str, vertices: LoadVertices| BehaviorTree {
+        behaviors: vec![
+            Arc::new(RodMaterial),
+            Arc::new(Load {
+                element: element.into(),
+                vertices,
+                force: [0.0, -1.0, 0.0],
+            }),
+        ],
+    };
+    let c = compile(
+        std::slice::from_ref(&hair),
+        &load("hair", LoadVertices::CurveTips),
+    )
+    .unwrap();
+    for (i, f) in c.system.forces.iter().enumerate() {
+        let want = if tips.contains(&i) { -1.0 } else { 0.0 };
+        assert_eq!(f.y, want, "vertex {i}");
+    }
+    let e = compile(std::slice::from_ref(&hair), &load("hat", LoadVertices::All)).unwrap_err();
+    assert!(
+        e.to_string().contains("load.element") && e.to_string().contains("hat"),
+        "{e}"
+    );
+    let e = compile(
+        std::slice::from_ref(&hair),
+        &load("hair", LoadVertices::Listed(vec![99])),
+    )
+    .unwrap_err();
+    assert!(
+        e.to_string().contains("load.vertices") && e.to_string().contains("99"),
+        "{e}"
+    );
+}
+
 #[test]
 fn a_step_that_cannot_converge_is_retried_then_reported_with_frame_and_substep() {
     let scene = vec![cloth(5)];
@@ -306,6 +415,7 @@ fn repeated_attachment_vertices_attach_once_and_repeated_behaviors_warn() {
         target: "cloth".into(),
         vertices: vec![0, 0, 2],
         mode: AttachmentMode::Spring(100.0),
+        clamps: Vec::new(),
     });
     let c = compile(&[cloth(3), springs], &tree()).unwrap();
     assert_eq!(

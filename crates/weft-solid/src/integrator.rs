@@ -558,6 +558,20 @@ impl Integrator {
             return self.explicit(sys, state, &x0, &target, h);
         }
         let mut x = state.x.clone();
+        if settings.method == Method::Static {
+            for i in (0..self.n).filter(|&i| self.free_of[i] == NONE) {
+                x[i] = target(i);
+            }
+            if let Some(g) = guess {
+                for i in (0..self.n).filter(|&i| self.free_of[i] != NONE) {
+                    x[i] = g[i];
+                }
+            }
+            let stats = self.minimize(sys, &mut x, &x0, Mode::Static, settings)?;
+            state.x = x;
+            state.v.iter_mut().for_each(|v| *v = Vector3::zeros());
+            return Ok(stats);
+        }
         for i in 0..self.n {
             if self.free_of[i] == NONE {
                 x[i] = target(i);

@@ -12,6 +12,11 @@ pub enum Method {
     Linearized,
     /// Projected Newton iterated to tolerance: implicit Euler solved exactly.
     Newton,
+    /// No inertia: each step moves pinned vertices to their targets and finds the static
+    /// equilibrium from where the last one was (the tolerance is ‖Δx‖∞ in metres);
+    /// velocities are zero. Steps then load a structure gradually (a static solve of a
+    /// cantilever, a drape's rest shape), not time.
+    Static,
 }
 
 /// Step settings.

@@ -1,7 +1,7 @@
 //! The mechanical system: lumped masses, pinned vertices, energy elements, and its state.
 
 use crate::energy::{
-    Element, Hinge, Membrane, MidedgeBend, RodBend, RodStretch, ShellBend, Spring,
+    Element, Hinge, Membrane, MidedgeBend, RodBend, RodClamp, RodStretch, ShellBend, Spring,
 };
 use nalgebra::{Matrix3, Vector3};
 
@@ -20,13 +20,15 @@ pub struct Elements {
     pub stretches: Vec<RodStretch>,
     /// Rod bending at interior vertices.
     pub bends: Vec<RodBend>,
+    /// Rod bending at clamped roots.
+    pub clamps: Vec<RodClamp>,
     /// Soft attachments.
     pub springs: Vec<Spring>,
 }
 
 impl Elements {
     /// Calls `f` on every element in a fixed order (membranes, hinges, shells,
-    /// midedges, stretches, bends, springs): assembly order is part of determinism.
+    /// midedges, stretches, bends, clamps, springs): assembly order is part of determinism.
     pub fn for_each(&self, mut f: impl FnMut(&dyn Element)) {
         self.membranes.iter().for_each(|e| f(e));
         self.hinges.iter().for_each(|e| f(e));
@@ -34,6 +36,7 @@ impl Elements {
         self.midedges.iter().for_each(|e| f(e));
         self.stretches.iter().for_each(|e| f(e));
         self.bends.iter().for_each(|e| f(e));
+        self.clamps.iter().for_each(|e| f(e));
         self.springs.iter().for_each(|e| f(e));
     }
     /// The `i`-th element in [`Elements::for_each`] order.
@@ -47,7 +50,7 @@ impl Elements {
             )*};
         }
         pick!(
-            membranes, hinges, shells, midedges, stretches, bends, springs
+            membranes, hinges, shells, midedges, stretches, bends, clamps, springs
         );
         panic!("element index out of range")
     }
@@ -59,6 +62,7 @@ impl Elements {
             + self.midedges.len()
             + self.stretches.len()
             + self.bends.len()
+            + self.clamps.len()
             + self.springs.len()
     }
     /// True when there are none.

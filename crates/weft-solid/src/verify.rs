@@ -5,7 +5,6 @@
 use crate::energy::{Membrane, MembraneMaterial, RodBend, RodStretch};
 use crate::{Integrator, Method, Settings, SolidSystem, State, StepError};
 use nalgebra::Vector3;
-use std::f64::consts::PI;
 
 /// Gravity in every scene [m/s²].
 pub const G: f64 = 9.81;
@@ -69,33 +68,6 @@ pub fn rod(
         }
     }
     (sys, at_rest(x))
-}
-
-/// Tip deflection of a steel rod cantilever (0.5 m, radius 1 mm) under its own weight, `n`
-/// segments, clamped by pinning its first two vertices (position and tangent), and the
-/// Euler–Bernoulli reference qL⁴/(8EI). Pinning two vertices clamps the tangent at the
-/// midpoint of the pinned segment (the first bending vertex's Voronoi region starts there),
-/// so the beam is L + l/2 long. Linear regime: δ/L ≈ 3·10⁻³. Panics unless `n` ≥ 1.
-pub fn cantilever_tip(n: usize) -> Result<(f64, f64), StepError> {
-    assert!(n >= 1, "a cantilever needs a segment");
-    let (len, r, e, rho) = (0.5, 1e-3, 2e11, 1000.0);
-    let area = PI * r * r;
-    let i = PI * r.powi(4) / 4.0;
-    let l = len / n as f64;
-    // One extra segment behind x = 0 carries the clamp.
-    let (mut sys, mut s) = rod(
-        n + 1,
-        len + l,
-        Vector3::new(-l, 0.0, 0.0),
-        rho * area,
-        e * area,
-        e * i,
-    );
-    sys.pinned[0] = true;
-    sys.pinned[1] = true;
-    solve_static(&sys, &mut s)?;
-    let q = rho * area * G;
-    Ok((-s.x[n + 1].y, q * (len + 0.5 * l).powi(4) / (8.0 * e * i)))
 }
 
 /// The catenary parameter c with 2c sinh(a/c) = `len` (ends at ±`a`), by bisection.

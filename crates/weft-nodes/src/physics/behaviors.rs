@@ -5,7 +5,7 @@ use std::sync::Arc;
 use weft_graph::{Kernel, NodeSpec, ParamSpec, Registry, RegistryError, Value};
 use weft_sim::{
     AttachmentBehavior, Behavior, BehaviorTree, Damping, DiscreteShellMaterial, FluidDrag, Gravity,
-    RodMaterial,
+    Load, LoadVertices, RodMaterial,
 };
 
 fn plain(
@@ -89,6 +89,45 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                     coefficient: cx.params().f64("coefficient")?,
                 };
                 cx.set("behavior", Value::new(BehaviorValue(Arc::new(d))));
+                Ok(())
+            }))
+        },
+    )?;
+    r.register(
+        NodeSpec::new(
+            "behavior.load",
+            "a constant force on chosen vertices of one element (a tip load, a weight hung on a point)",
+        )
+        .output("behavior", "behavior", "the Behavior")
+        .param(ParamSpec::string("element", "").doc("name of the loaded element"))
+        .param(
+            ParamSpec::choice("select", &["all", "curve_tips", "vertices"], "curve_tips")
+                .doc("all: every vertex; curve_tips: the last vertex of every strand; vertices: the listed indices"),
+        )
+        .param(ParamSpec::floats("vertices", &[]).doc("vertex indices (select = vertices)"))
+        .param(
+            ParamSpec::vec3("force", [0.0, 0.0, 0.0])
+                .unit("N")
+                .doc("force on each chosen vertex"),
+        ),
+        |p| {
+            super::convert::indices(p, "vertices")?;
+            Ok(Kernel::from_fn(|cx| {
+                let p = cx.params();
+                let vertices = match p.str("select")? {
+                    "all" => LoadVertices::All,
+                    "vertices" => LoadVertices::Listed(
+                        super::convert::indices(p, "vertices")
+                            .map_err(weft_graph::NodeError::Failed)?,
+                    ),
+                    _ => LoadVertices::CurveTips,
+                };
+                let l = Load {
+                    element: p.str("element")?.to_string(),
+                    vertices,
+                    force: p.vec3("force")?,
+                };
+                cx.set("behavior", Value::new(BehaviorValue(Arc::new(l))));
                 Ok(())
             }))
         },

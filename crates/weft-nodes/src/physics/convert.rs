@@ -74,7 +74,7 @@ fn with_velocity(cx: &EvalCx<'_>, mut e: SceneElement) -> Result<SceneElement, N
 }
 
 /// Vertex indices from a list parameter of whole numbers.
-fn indices(p: &Params, name: &str) -> Result<Vec<u32>, String> {
+pub(crate) fn indices(p: &Params, name: &str) -> Result<Vec<u32>, String> {
     p.floats(name)?
         .iter()
         .map(|&x| {
@@ -237,7 +237,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             .param(ParamSpec::string("name", "attachment").doc("element name, unique in the scene"))
             .param(ParamSpec::choice("select", &["vertices", "curve_roots"], "vertices").doc("vertices: the listed indices; curve_roots: the first vertices of every curve"))
             .param(ParamSpec::floats("vertices", &[]).doc("vertex indices (select = vertices)"))
-            .param(ParamSpec::int("root_vertices", 2).ge(1.0).le(16.0).doc("vertices per curve root (2 also clamps the root's direction)"))
+            .param(ParamSpec::int("root_vertices", 2).ge(1.0).le(16.0).doc("vertices per curve root: 1 holds the root vertex and lets the strand turn about it; k >= 2 holds the first k - 1 and clamps the strand's direction at the last of them (2: a strand clamped at its root, bending over its whole length)"))
             .param(ParamSpec::choice("mode", &["hard", "spring"], "hard").doc("hard: exactly; spring: a zero-length spring"))
             .param(ParamSpec::float("stiffness", 1e3).gt(0.0).unit("N/m").doc("spring stiffness (mode = spring)")),
         |p| {
@@ -251,13 +251,15 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
 fn attachment(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let target = cx.input_as::<SceneElement>("target")?;
     let p = cx.params().clone();
-    let vertices = match p.str("select")? {
+    let mode = if p.str("mode")? == "spring" {
+        AttachmentMode::Spring(p.f64("stiffness")?)
+    } else {
+        AttachmentMode::Hard
+    };
+    let sec = match p.str("select")? {
         "curve_roots" => match &*target.geometry {
             Geometry::Curves(c) => {
-                let k = p.i64("root_vertices")? as u32;
-                (0..c.len())
-                    .flat_map(|i| c.offsets[i]..(c.offsets[i] + k).min(c.offsets[i + 1]))
-                    .collect()
+                Attachment::curve_roots(&target.name, c, p.usize("root_vertices")? as u32, mode)
             }
             _ => {
                 return Err(NodeError::Input {
@@ -269,26 +271,22 @@ fn attachment(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
                 });
             }
         },
-        _ => indices(&p, "vertices").map_err(NodeError::Failed)?,
+        _ => Attachment {
+            target: target.name.clone(),
+            vertices: indices(&p, "vertices").map_err(NodeError::Failed)?,
+            mode,
+            clamps: Vec::new(),
+        },
     };
     let n = target.vertex_count();
-    if let Some(v) = vertices.iter().find(|&&v| v as usize >= n) {
+    if let Some(v) = sec.vertices.iter().find(|&&v| v as usize >= n) {
         return Err(NodeError::Failed(format!(
             "param 'vertices': vertex {v} is out of range ('{}' has {n} vertices)",
             target.name
         )));
     }
-    let mode = if p.str("mode")? == "spring" {
-        AttachmentMode::Spring(p.f64("stiffness")?)
-    } else {
-        AttachmentMode::Hard
-    };
     let mut e = SceneElement::new(p.str("name")?, ElementKind::Attachment, Geometry::None);
-    e.secs.insert(Attachment {
-        target: target.name.clone(),
-        vertices,
-        mode,
-    });
+    e.secs.insert(sec);
     e.transform = match cx.input_opt("transform")? {
         Some(v) => v.get::<Transform>().copied(),
         None => None,

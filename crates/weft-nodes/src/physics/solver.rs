@@ -40,6 +40,7 @@ fn settings(p: &Params, max_bytes: u64) -> Result<StepperSettings, weft_graph::P
     let method = match p.str("method")? {
         "explicit" => Method::Explicit,
         "linearized" => Method::Linearized,
+        "static" => Method::Static,
         _ => Method::Newton,
     };
     Ok(StepperSettings {
@@ -244,8 +245,8 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             .input("tree", "behavior_tree", "what is simulated")
             .output("scene", "scene", "the elements at this frame")
             .param(ParamSpec::int("substeps", 4).ge(1.0).le(100_000.0).doc("steps per frame"))
-            .param(ParamSpec::choice("method", &["newton", "linearized", "explicit"], "newton").doc("newton: implicit Euler to tolerance; linearized: one Newton step; explicit: symplectic Euler"))
-            .param(ParamSpec::float("tolerance", 1e-6).gt(0.0).unit("m/s").doc("Newton stops when a further iteration would change velocities by less"))
+            .param(ParamSpec::choice("method", &["newton", "linearized", "explicit", "static"], "newton").doc("newton: implicit Euler to tolerance; linearized: one Newton step; explicit: symplectic Euler; static: no inertia, each step finds the equilibrium under that step's loads and attachment targets (substeps load the structure gradually)"))
+            .param(ParamSpec::float("tolerance", 1e-6).gt(0.0).unit("m/s").doc("Newton stops when a further iteration would change velocities by less (method static: positions, in m)"))
             .param(ParamSpec::int("max_iterations", 50).ge(1.0).le(10_000.0).doc("Newton iteration limit per step"))
             .param(ParamSpec::int("max_retries", 4).ge(0.0).le(16.0).doc("levels of step halving when a step fails")),
         |_| Ok(Kernel::Step(Box::new(SolidSolver { stepper: None, frames: VecDeque::new(), compiled: None, interrupt: None, totals: [0; 2] }))),

@@ -12,7 +12,7 @@ mod spring;
 pub use hinge::{Hinge, dihedral_angle, dihedral_gradient};
 pub use membrane::{Membrane, MembraneMaterial};
 pub use midedge::MidedgeBend;
-pub use rod::{RodBend, RodStretch};
+pub use rod::{RodBend, RodClamp, RodStretch};
 pub use shell::{MAX_STENCIL, ShellBend, ShellBending, ShellError, shell_bending};
 pub use spring::Spring;
 
