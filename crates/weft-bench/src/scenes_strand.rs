@@ -226,3 +226,47 @@ pub fn pendulum_period(
     let rigid = 2.0 * PI * (2.0 * LENGTH / (3.0 * G)).sqrt();
     Ok((period, rigid * 2.0 * elliptic_k((0.5 * theta).sin()) / PI))
 }
+
+/// The cloth strip template (`scenes/strip.json`): 0.4 m × 0.1 m, 1 mm, E = 2 GPa, ν = 0,
+/// 5 g/m², clamped along its short edge at x = 0.
+pub const STRIP: &str = include_str!("../scenes/strip.json");
+/// The strip's length [m] (along x).
+pub const STRIP_LENGTH: f64 = 0.4;
+
+/// How the strip's edge is held.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Edge {
+    /// The first column held with `clamp: true`: the clamp at x = 0.
+    Clamped,
+    /// The first two columns held, no clamp (the clamp before issue 20): rigid up to the
+    /// second column, and clamped half a column behind it.
+    TwoColumns,
+}
+
+/// Static tip deflection (mean of the tip's two corners) of the strip with `nx` × `ny`
+/// vertices, held as `edge`, and the elastica's for a beam of the strip's length
+/// (EI = E b t³/12: ν = 0, so the narrow and wide plate formulas agree).
+pub fn strip_tip(nx: usize, ny: usize, edge: Edge) -> Result<(f64, f64), String> {
+    let mut g = load(STRIP, "strip.json")?;
+    set(&mut g, "sheet.nx", json!(nx))?;
+    set(&mut g, "sheet.ny", json!(ny))?;
+    let mut held: Vec<usize> = (0..ny).map(|j| j * nx).collect();
+    if edge == Edge::TwoColumns {
+        held.extend((0..ny).map(|j| j * nx + 1));
+        set(&mut g, "edge.clamp", json!(false))?;
+    }
+    set(&mut g, "edge.vertices", json!(held))?;
+    set(&mut g, "tip0.index", json!(nx - 1))?;
+    set(&mut g, "tip1.index", json!(ny * nx - 1))?;
+    let mut y = 0.0;
+    for out in ["tip0", "tip1"] {
+        y -= 0.5
+            * g.pull(out, Context::at(1, 1.0))
+                .map_err(|e| e.to_string())?
+                .get::<[f64; 3]>()
+                .ok_or("the tip is not a vec3")?[1];
+    }
+    let (e, t, b, rho_a) = (2e9, 1e-3, 0.1, 0.005);
+    let ei = e * b * t * t * t / 12.0;
+    Ok((y, elastica_tip(STRIP_LENGTH, ei, rho_a * G * b, 0.0)))
+}

@@ -343,6 +343,44 @@ impl Attachment {
             clamps,
         }
     }
+
+    /// The clamps of held `vertices` on `geometry`. Cloth: every boundary edge (in one
+    /// triangle) whose two vertices are held, so the cloth's tangent plane is held along its
+    /// held border. Strands: every held vertex whose next vertex on the strand is not held
+    /// (where the free strand leaves what is held). In ascending order.
+    pub fn clamps_of(geometry: &crate::Geometry, vertices: &[u32]) -> Vec<[u32; 2]> {
+        let held: std::collections::BTreeSet<u32> = vertices.iter().copied().collect();
+        match geometry {
+            crate::Geometry::Mesh(m) => {
+                let mut count: BTreeMap<[u32; 2], u32> = BTreeMap::new();
+                for t in &m.triangles {
+                    for k in 0..3 {
+                        let (a, b) = (t[k], t[(k + 1) % 3]);
+                        *count.entry([a.min(b), a.max(b)]).or_default() += 1;
+                    }
+                }
+                count
+                    .into_iter()
+                    .filter(|(e, c)| *c == 1 && held.contains(&e[0]) && held.contains(&e[1]))
+                    .map(|(e, _)| e)
+                    .collect()
+            }
+            crate::Geometry::Curves(c) => (0..c.len())
+                .flat_map(|k| {
+                    let r = c.range(k);
+                    let held = &held;
+                    r.clone().filter_map(move |v| {
+                        let v = v as u32;
+                        (held.contains(&v)
+                            && ((v + 1) as usize) < r.end
+                            && !held.contains(&(v + 1)))
+                        .then_some([v, v + 1])
+                    })
+                })
+                .collect(),
+            _ => Vec::new(),
+        }
+    }
 }
 
 #[cfg(test)]

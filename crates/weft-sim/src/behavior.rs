@@ -11,7 +11,8 @@ use weft_scene::{
     Attachment, AttachmentMode, Density, DiscreteShell, ElementKind, Geometry, Rod, SceneElement,
 };
 use weft_solid::energy::{
-    Membrane, MembraneMaterial, RodBend, RodClamp, RodStretch, Spring, shell_bending,
+    ClampedEdge, Membrane, MembraneMaterial, RodBend, RodClamp, RodStretch, Spring,
+    shell_bending_clamped,
 };
 
 /// Simulation logic for the elements a Behavior applies to.
@@ -182,12 +183,37 @@ impl Behavior for DiscreteShellMaterial {
             if shell.bend_scale > 0.0 {
                 let d = shell.bend_scale * shell.youngs_modulus * shell.thickness.powi(3)
                     / (12.0 * (1.0 - shell.poisson_ratio.powi(2)));
-                let rest: Vec<Vector3<f64>> = rest.iter().map(|&p| v3(p)).collect();
-                let bending = shell_bending(&rest, &mesh.triangles, d, shell.poisson_ratio)
-                    .map_err(|err| SimError::BadGeometry {
-                        element: name.into(),
-                        message: err.to_string(),
-                    })?;
+                let mut rest: Vec<Vector3<f64>> = rest.iter().map(|&p| v3(p)).collect();
+                // Clamped edges: their ghosts' rest positions follow the element's rest
+                // positions after its own (crate::clamp).
+                let ghosts: Vec<crate::Ghost> = b
+                    .ghosts
+                    .iter()
+                    .filter(|g| g.element == ei)
+                    .cloned()
+                    .collect();
+                let mut clamped = Vec::with_capacity(ghosts.len());
+                for g in &ghosts {
+                    let [p, q] = g.edge.map(|v| rest[v as usize]);
+                    clamped.push(ClampedEdge {
+                        edge: g.edge,
+                        ghost: rest.len() as u32,
+                    });
+                    rest.push(crate::clamp::mirror(p, q, rest[g.apex as usize]));
+                }
+                let bending =
+                    shell_bending_clamped(&rest, &mesh.triangles, d, shell.poisson_ratio, &clamped)
+                        .map_err(|err| SimError::BadGeometry {
+                            element: name.into(),
+                            message: err.to_string(),
+                        })?;
+                let global = |v: u32| {
+                    if v < n {
+                        v + off
+                    } else {
+                        ghosts[(v - n) as usize].vertex as u32
+                    }
+                };
                 if bending.non_manifold_edges > 0 {
                     b.warn(format!(
                         "element '{name}': {} non-manifold edge(s) (shared by more than two triangles); their vertices get no bending",
@@ -195,11 +221,11 @@ impl Behavior for DiscreteShellMaterial {
                     ));
                 }
                 for mut el in bending.vertices {
-                    el.offset_vertices(off);
+                    el.map_vertices(global);
                     b.system.elements.shells.push(el);
                 }
                 for mut el in bending.triangles {
-                    el.offset_vertices(off);
+                    el.map_vertices(global);
                     b.system.elements.midedges.push(el);
                 }
             }
@@ -543,11 +569,8 @@ fn clamps(
         return Ok(());
     };
     let Geometry::Curves(curves) = &*e.geometry else {
-        return Err(format!(
-            "clamps hold strands, but '{}' is a {} (attach its vertices without a clamp)",
-            e.name,
-            e.kind.name()
-        ));
+        // Cloth clamps are ghosts, made (and checked) before any Behavior applies.
+        return Ok(());
     };
     let rod = e.secs.get::<Rod>().cloned().unwrap_or_default();
     let ei = rod_bending_stiffness(&e.name, &rod).map_err(|err| err.to_string())?;

@@ -194,19 +194,34 @@ pub fn compile_within(
         }
         ranges.push(Some(start..x.len()));
     }
+    // Ghosts behind clamped cloth edges: held, massless vertices after every element's.
+    let mut ghosts = crate::clamp::cloth_ghosts(scene, &ranges, &x)?;
+    for (g, p) in &mut ghosts {
+        g.vertex = x.len();
+        x.push(*p);
+        v.push(Vector3::zeros());
+    }
     let n = x.len();
     let mut system = SolidSystem::new(vec![0.0; n]);
     system.damping = vec![0.0; n];
+    for (g, _) in &ghosts {
+        system.pinned[g.vertex] = true;
+    }
     let mut b = SystemBuilder {
         system,
         x,
         ranges,
         pins: Vec::new(),
         clamps: Vec::new(),
+        ghosts: ghosts.into_iter().map(|(g, _)| g).collect(),
         warnings: Vec::new(),
         read: vec![BTreeSet::new(); scene.len()],
         drag_elements: Vec::new(),
     };
+    for k in 0..b.ghosts.len() {
+        let (a, vertex) = (b.ghosts[k].attachment, b.ghosts[k].vertex);
+        b.pin(a, vertex, None, scene[a].transform);
+    }
     for (k, beh) in tree.behaviors.iter().enumerate() {
         if tree.behaviors[..k].iter().any(|o| o.name() == beh.name()) {
             // Applying a Behavior twice doubles its terms (damping, stiffness, gravity).
@@ -288,6 +303,7 @@ pub fn compile_within(
         ("rod_stretches", el.stretches.len()),
         ("rod_bends", el.bends.len()),
         ("rod_clamps", el.clamps.len()),
+        ("cloth_clamp_ghosts", b.ghosts.len()),
         ("springs", el.springs.len()),
         ("drag_elements", b.drag_elements.len()),
         ("pinned", b.system.pinned.iter().filter(|p| **p).count()),

@@ -41,6 +41,8 @@ pub struct SystemBuilder {
     pub(crate) ranges: Vec<Option<Range<usize>>>,
     pub(crate) pins: Vec<Pin>,
     pub(crate) clamps: Vec<ClampPin>,
+    /// Ghost vertices behind clamped cloth edges (made before any Behavior applies).
+    pub ghosts: Vec<crate::Ghost>,
     pub(crate) warnings: Vec<String>,
     pub(crate) read: Vec<BTreeSet<&'static str>>,
     /// Elements that exchange momentum with a fluid (filled by [`crate::FluidDrag`]).

@@ -14,6 +14,7 @@
 mod behavior;
 mod build;
 mod builder;
+mod clamp;
 mod coupled;
 mod error;
 pub mod estimate;
@@ -29,6 +30,7 @@ pub use behavior::{
 pub use build::{
     ClampPin, Compiled, Pin, SYSTEM_BYTES_PER_VERTEX, SystemBuilder, compile, compile_within,
 };
+pub use clamp::Ghost;
 pub use coupled::{
     CoupledError, CoupledSettings, CoupledStepper, Coupling, DragElement, DragShape, Exchange,
     Predicted,

@@ -279,18 +279,25 @@ fn a_clamped_root_turns_with_its_transform() {
     };
     let c = Arc::new(compile(&scene0, &tree).unwrap());
     assert_eq!((c.terms["rod_clamps"], c.terms["pinned"]), (1, 1));
+    turned_rigidly(c, &scene0, 4, 9);
+}
+
+/// Solves `scene0` statically (`substeps` load steps, Newton to 1e-11 m) while its second
+/// element's transform turns 90° about z, and checks that the first `n` vertices turned
+/// rigidly with it (to 1e-9 m).
+fn turned_rigidly(c: Arc<Compiled>, scene0: &[SceneElement], substeps: usize, n: usize) {
     let settings = StepperSettings {
-        substeps: 4,
+        substeps,
         solver: Settings {
             method: weft_solid::Method::Static,
             tolerance: 1e-11,
-            max_iterations: 100,
+            max_iterations: 200,
         },
         ..Default::default()
     };
     let mut s = SolidStepper::new(c, settings).unwrap();
-    let state = s.initial_state(&scene0);
-    let mut scene1 = scene0.clone();
+    let state = s.initial_state(scene0);
+    let mut scene1 = scene0.to_vec();
     let turn = nalgebra::UnitQuaternion::from_axis_angle(
         &nalgebra::Vector3::z_axis(),
         std::f64::consts::FRAC_PI_2,
@@ -300,10 +307,64 @@ fn a_clamped_root_turns_with_its_transform() {
         turn,
     ));
     let (next, _) = s.advance(&state, &scene1, 1, 1.0 / 24.0).unwrap();
-    for (i, (x, x0)) in next.solid.x.iter().zip(&state.solid.x).enumerate() {
-        let want = turn * x0;
+    for i in 0..n {
+        let (x, want) = (next.solid.x[i], turn * state.solid.x[i]);
         assert!((x - want).norm() < 1e-9, "vertex {i}: {x:?}, want {want:?}");
     }
+}
+
+/// A clamped cloth edge turns with its attachment: a horizontal strip (xz-plane) held along
+/// its x = 0 column with clamps on its border edges, no gravity, solved statically while the
+/// transform turns 90° about z: the strip turns rigidly with it (every vertex at the turned
+/// start position to 1e-9 m), so the ghosts that hold its tangent plane follow the transform.
+/// Without the clamp, the held column is a hinge and the strip would stay horizontal. An
+/// edge that is not on the border is refused by name.
+#[test]
+fn a_clamped_cloth_edge_turns_with_its_transform() {
+    let (nx, ny) = (6, 3);
+    let mut strip = SceneElement::new(
+        "cloth",
+        ElementKind::Cloth,
+        Geometry::Mesh(grid([0.2, 0.1], [nx, ny], Plane::Xz, [0.1, 0.0, 0.0])),
+    );
+    strip.secs.insert(DiscreteShell {
+        youngs_modulus: 1e8,
+        ..Default::default()
+    });
+    let held: Vec<u32> = (0..ny as u32).map(|j| j * nx as u32).collect();
+    let clamps = Attachment::clamps_of(&strip.geometry, &held);
+    assert_eq!(clamps, vec![[0, 6], [6, 12]]);
+    let mut att = pins("cloth", held.clone());
+    att.secs.insert(Attachment {
+        target: "cloth".into(),
+        vertices: held,
+        mode: AttachmentMode::Hard,
+        clamps,
+    });
+    att.transform = Some(weft_scene::Transform::identity());
+    let scene0 = vec![strip, att];
+    let tree = BehaviorTree {
+        behaviors: vec![
+            Arc::new(DiscreteShellMaterial),
+            Arc::new(AttachmentBehavior),
+        ],
+    };
+    let c = Arc::new(compile(&scene0, &tree).unwrap());
+    assert_eq!(c.terms["cloth_clamp_ghosts"], 2);
+    turned_rigidly(c, &scene0, 8, nx * ny);
+    // An interior edge cannot be clamped.
+    let mut bad = scene0.clone();
+    bad[1].secs.insert(Attachment {
+        target: "cloth".into(),
+        vertices: vec![1, 7],
+        mode: AttachmentMode::Hard,
+        clamps: vec![[1, 7]],
+    });
+    let e = compile(&bad, &tree).unwrap_err().to_string();
+    assert!(
+        e.contains("(1, 7)") && e.contains("not a boundary edge"),
+        "{e}"
+    );
 }
 
 /// A load names its element and vertices; a wrong name or index is an error naming the

@@ -238,6 +238,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             .param(ParamSpec::choice("select", &["vertices", "curve_roots"], "vertices").doc("vertices: the listed indices; curve_roots: the first vertices of every curve"))
             .param(ParamSpec::floats("vertices", &[]).doc("vertex indices (select = vertices)"))
             .param(ParamSpec::int("root_vertices", 2).ge(1.0).le(16.0).doc("vertices per curve root: 1 holds the root vertex and lets the strand turn about it; k >= 2 holds the first k - 1 and clamps the strand's direction at the last of them (2: a strand clamped at its root, bending over its whole length)"))
+            .param(ParamSpec::bool("clamp", false).doc("select = vertices: also hold the direction the element leaves them in, as it starts and turned with the transform (cloth: its tangent plane along every border edge whose two vertices are listed, so one listed row is a clamped edge, not a hinge; strands: where the free strand leaves a listed vertex)"))
             .param(ParamSpec::choice("mode", &["hard", "spring"], "hard").doc("hard: exactly; spring: a zero-length spring"))
             .param(ParamSpec::float("stiffness", 1e3).gt(0.0).unit("N/m").doc("spring stiffness (mode = spring)")),
         |p| {
@@ -271,12 +272,20 @@ fn attachment(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
                 });
             }
         },
-        _ => Attachment {
-            target: target.name.clone(),
-            vertices: indices(&p, "vertices").map_err(NodeError::Failed)?,
-            mode,
-            clamps: Vec::new(),
-        },
+        _ => {
+            let vertices = indices(&p, "vertices").map_err(NodeError::Failed)?;
+            let clamps = if p.bool("clamp")? {
+                Attachment::clamps_of(&target.geometry, &vertices)
+            } else {
+                Vec::new()
+            };
+            Attachment {
+                target: target.name.clone(),
+                vertices,
+                mode,
+                clamps,
+            }
+        }
     };
     let n = target.vertex_count();
     if let Some(v) = sec.vertices.iter().find(|&&v| v as usize >= n) {

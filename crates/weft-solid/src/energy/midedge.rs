@@ -29,7 +29,13 @@ const NO_WING: u8 = u8::MAX;
 
 /// The plate's energy ½ φᵀBφ in the edge angles φ of a rest triangle: (full, deviatoric),
 /// `Bₖₗ = Ā D cₖcₗ[(1 − ν)(tₖ·tₗ)² + ν]` and `Ā (1 − ν) D cₖcₗ[(tₖ·tₗ)² − ½]`.
-fn plate_matrices(rest: [Vector3<f64>; 3], d: f64, nu: f64) -> (Matrix3<f64>, Matrix3<f64>) {
+/// `scale[k]` multiplies cₖ: 2 on a clamped edge (see [`MidedgeBend::new`]).
+fn plate_matrices(
+    rest: [Vector3<f64>; 3],
+    d: f64,
+    nu: f64,
+    scale: [f64; 3],
+) -> (Matrix3<f64>, Matrix3<f64>) {
     let n = (rest[1] - rest[0]).cross(&(rest[2] - rest[0]));
     let area = 0.5 * n.norm();
     let mut t = [Vector3::zeros(); 3];
@@ -37,7 +43,7 @@ fn plate_matrices(rest: [Vector3<f64>; 3], d: f64, nu: f64) -> (Matrix3<f64>, Ma
     for k in 0..3 {
         let e = rest[(k + 2) % 3] - rest[(k + 1) % 3];
         t[k] = e.cross(&n).normalize();
-        c[k] = e.norm() / (2.0 * area);
+        c[k] = scale[k] * e.norm() / (2.0 * area);
     }
     let full = Matrix3::from_fn(|k, l| {
         area * d * c[k] * c[l] * ((1.0 - nu) * t[k].dot(&t[l]).powi(2) + nu)
@@ -67,14 +73,22 @@ impl MidedgeBend {
     /// The element of triangle `tri` (rest positions `rest`, positive area), with `wings[k]`
     /// the vertex (index and rest position) across the edge opposite `tri[k]`, or `None` for a
     /// free edge. `d` is the bending stiffness D [J], `nu` Poisson's ratio.
+    ///
+    /// `clamped[k]`: edge k is clamped, its wing a fixed ghost in the clamp's plane. The fold
+    /// there, θ between the triangle and the clamp, spans only the strip between the clamp
+    /// line and the triangle's midline (the ghost is outside the plate and carries no
+    /// energy), so it is a curvature θ/(h/2), not θ/h: cₖ is doubled, as the root clamp of a
+    /// rod doubles the half-segment's bending (`RodClamp`).
     pub(crate) fn new(
         tri: [u32; 3],
         rest: [Vector3<f64>; 3],
         wings: [Option<(u32, Vector3<f64>)>; 3],
+        clamped: [bool; 3],
         d: f64,
         nu: f64,
     ) -> Self {
-        let (full, dev) = plate_matrices(rest, d, nu);
+        let scale = clamped.map(|c| if c { 2.0 } else { 1.0 });
+        let (full, dev) = plate_matrices(rest, d, nu, scale);
         let mut v = [tri[0], tri[1], tri[2], 0, 0, 0];
         let mut len = 3u8;
         let mut wing = [NO_WING; 3];
@@ -135,8 +149,14 @@ impl MidedgeBend {
 
     /// Adds `offset` to every vertex index.
     pub fn offset_vertices(&mut self, offset: u32) {
+        self.map_vertices(|v| v + offset);
+    }
+
+    /// Replaces every vertex index v by `f(v)` (to place a mesh and its clamps' ghosts in a
+    /// larger system).
+    pub fn map_vertices(&mut self, f: impl Fn(u32) -> u32) {
         let n = self.len as usize;
-        self.v[..n].iter_mut().for_each(|v| *v += offset);
+        self.v[..n].iter_mut().for_each(|v| *v = f(*v));
     }
 
     /// Stencil indices of edge k's hinge (edge, edge, own vertex, wing).
@@ -260,7 +280,7 @@ mod tests {
 
     fn element(x: &[Vector3<f64>], free: Option<usize>) -> MidedgeBend {
         let wings = [0, 1, 2].map(|k| (Some(k) != free).then(|| (3 + k as u32, x[3 + k])));
-        MidedgeBend::new([0, 1, 2], [x[0], x[1], x[2]], wings, 0.3, 0.3)
+        MidedgeBend::new([0, 1, 2], [x[0], x[1], x[2]], wings, [false; 3], 0.3, 0.3)
     }
 
     #[test]
@@ -279,7 +299,7 @@ mod tests {
     fn a_free_edge_takes_its_zero_moment_angle() {
         let x = patch();
         let (d, nu) = (0.3, 0.3);
-        let (full, dev) = plate_matrices([x[0], x[1], x[2]], d, nu);
+        let (full, dev) = plate_matrices([x[0], x[1], x[2]], d, nu, [1.0; 3]);
         let cond = element(&x, Some(1)).stiffness();
         assert_eq!(cond[1], [0.0; 3]);
         assert_eq!([cond[0][1], cond[2][1]], [0.0; 2]);
@@ -298,6 +318,7 @@ mod tests {
             [0, 1, 2],
             [r[0], r[1], r[2]],
             [0, 1, 2].map(|k| Some((3 + k as u32, r[3 + k]))),
+            [false; 3],
             1.0,
             0.3,
         );

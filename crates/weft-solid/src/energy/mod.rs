@@ -13,7 +13,10 @@ pub use hinge::{Hinge, dihedral_angle, dihedral_gradient};
 pub use membrane::{Membrane, MembraneMaterial};
 pub use midedge::MidedgeBend;
 pub use rod::{RodBend, RodClamp, RodStretch};
-pub use shell::{MAX_STENCIL, ShellBend, ShellBending, ShellError, shell_bending};
+pub use shell::{
+    ClampedEdge, MAX_STENCIL, ShellBend, ShellBending, ShellError, shell_bending,
+    shell_bending_clamped,
+};
 pub use spring::Spring;
 
 use nalgebra::{SMatrix, SVector, Vector3};

@@ -39,6 +39,8 @@
 //!
 //! Boundary vertices use the same formula over their partial ring: a first-order estimate in
 //! the boundary row whose error vanishes under refinement (the shell cantilever converges).
+//! Held vertices on a clamped edge measure their partial ring against the clamp's normal
+//! instead of their own, so the edge holds the cloth's tangent plane ([`shell_bending_clamped`]).
 
 use super::{Element, Local, MidedgeBend};
 use nalgebra::Vector3;
@@ -118,6 +120,45 @@ pub fn shell_bending(
     d: f64,
     nu: f64,
 ) -> Result<ShellBending, ShellError> {
+    shell_bending_clamped(rest, tris, d, nu, &[])
+}
+
+/// A clamped boundary edge: its two vertices are held, and so is the cloth's tangent plane
+/// along it, represented by a ghost vertex (held, outside the plate, no energy of its own)
+/// that mirrors the edge's triangle across the edge, so the ghost triangle continues the
+/// cloth flat as it starts.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ClampedEdge {
+    /// The edge's vertices (either order).
+    pub edge: [u32; 2],
+    /// The ghost's index in the rest positions passed with it.
+    pub ghost: u32,
+}
+
+/// [`shell_bending`] with clamped boundary edges (the rule of a rod's root clamp, `RodClamp`:
+/// count the half cell between the clamp line and the first free vertices, against the
+/// clamp's direction):
+/// - the deviator: a triangle on a clamped edge takes the ghost as that edge's wing, with the
+///   edge's weight doubled (see `MidedgeBend::new`);
+/// - the trace: a held vertex on a clamped edge keeps its weights and (half) Voronoi area
+///   from the real triangles, but measures y along the clamp's normal, the normal of its
+///   ghost triangles, instead of its own ring's (which turns with the cloth and would make
+///   the held row a hinge). With the cloth tilted by θ about the clamp line, y·n = θ·(half
+///   the chord of its boundary neighbours), so the energy is the plate's over the half cell.
+///
+/// `rest` holds the mesh's vertices and then the ghosts; `tris` uses only the former.
+pub fn shell_bending_clamped(
+    rest: &[Vector3<f64>],
+    tris: &[[u32; 3]],
+    d: f64,
+    nu: f64,
+    clamps: &[ClampedEdge],
+) -> Result<ShellBending, ShellError> {
+    let key = |a: u32, b: u32| (a.min(b), a.max(b));
+    let clamp_of: std::collections::HashMap<(u32, u32), u32> = clamps
+        .iter()
+        .map(|c| (key(c.edge[0], c.edge[1]), c.ghost))
+        .collect();
     let n = rest.len();
     let mut ring: Vec<Vec<usize>> = vec![Vec::new(); n];
     let mut edges: std::collections::HashMap<(u32, u32), Vec<usize>> = Default::default();
@@ -134,14 +175,26 @@ pub fn shell_bending(
         }
     }
     let mut triangles = Vec::with_capacity(tris.len());
+    // Ghost triangles, in each held vertex's ring: (b, a, ghost) for a clamped edge that
+    // its triangle runs a → b, so the ghost's normal continues the triangle's.
+    let mut ghost_faces: Vec<Vec<[u32; 3]>> = vec![Vec::new(); n];
     for (ti, t) in tris.iter().enumerate() {
+        let mut clamped = [false; 3];
         let wings = [0, 1, 2].map(|k| {
             let (p, q) = (t[(k + 1) % 3], t[(k + 2) % 3]);
-            match edges[&(p.min(q), p.max(q))].as_slice() {
+            match edges[&key(p, q)].as_slice() {
                 [a, b] => {
                     let other = tris[if *a == ti { *b } else { *a }];
                     let w = other.into_iter().find(|&u| u != p && u != q)?;
                     Some((w, rest[w as usize]))
+                }
+                [_] => {
+                    let &g = clamp_of.get(&key(p, q))?;
+                    clamped[k] = true;
+                    for v in [p, q] {
+                        ghost_faces[v as usize].push([q, p, g]);
+                    }
+                    Some((g, *rest.get(g as usize)?))
                 }
                 _ => None,
             }
@@ -150,6 +203,7 @@ pub fn shell_bending(
             *t,
             t.map(|v| rest[v as usize]),
             wings,
+            clamped,
             d,
             nu,
         ));
@@ -171,6 +225,7 @@ pub fn shell_bending(
         let mut nb: Vec<u32> = faces
             .iter()
             .flat_map(|&ti| tris[ti])
+            .chain(ghost_faces[v].iter().flatten().copied())
             .filter(|&u| u as usize != v)
             .collect();
         nb.sort_unstable();
@@ -219,6 +274,10 @@ pub fn shell_bending(
         }
         if area.is_nan() || area <= 0.0 {
             return Err(ShellError::Degenerate { triangle: faces[0] });
+        }
+        if !ghost_faces[v].is_empty() {
+            // Clamped: the normal is the clamp's (ghost weights stay zero).
+            local_faces = ghost_faces[v].iter().map(|f| f.map(local)).collect();
         }
         let mut e = ShellBend {
             v: stencil.into(),
@@ -292,7 +351,13 @@ impl ShellBend {
 
     /// Adds `offset` to every vertex index (to place a mesh's elements in a larger system).
     pub fn offset_vertices(&mut self, offset: u32) {
-        self.v.iter_mut().for_each(|v| *v += offset);
+        self.map_vertices(|v| v + offset);
+    }
+
+    /// Replaces every vertex index v by `f(v)` (to place a mesh and its clamps' ghosts in a
+    /// larger system).
+    pub fn map_vertices(&mut self, f: impl Fn(u32) -> u32) {
+        self.v.iter_mut().for_each(|v| *v = f(*v));
     }
 
     fn positions(&self, x: &[Vector3<f64>], p: &mut [[f64; 3]; MAX_STENCIL]) {
