@@ -1,6 +1,7 @@
 //! `weft-fuzz`: a seeded mutation fuzzer for everything a user's files can feed Weft.
 //!
-//! It takes the example graphs (`graphs/*.json`) and the OBJ seeds (`tests/fuzz/seeds/`),
+//! It takes the example graphs (`graphs/*.json`), the OBJ seeds (`tests/fuzz/seeds/`) and the
+//! verification scenes (`crates/weft-bench/scenes/`),
 //! mutates them the way users and tools damage files (a number scaled a thousandfold, a node's
 //! type swapped, a parameter moved to another node, a connection rewired, a key deleted, bytes
 //! cut, an OBJ index out of range or a coordinate `nan`), and runs each case through
@@ -29,11 +30,14 @@ pub fn repo_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
-/// The default seed directories: the example graphs and the OBJ seeds.
+/// The default seed directories: the example graphs, the OBJ seeds, and the verification
+/// scenes of weft-bench (graphs users could write: static solves, loads, clamped strands
+/// and cloth, coupled boxes).
 pub fn default_seed_dirs() -> Vec<PathBuf> {
     vec![
         repo_root().join("graphs"),
         repo_root().join("tests/fuzz/seeds"),
+        repo_root().join("crates/weft-bench/scenes"),
     ]
 }
 

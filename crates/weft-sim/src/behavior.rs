@@ -228,6 +228,10 @@ impl Behavior for DiscreteShellMaterial {
                     el.map_vertices(global);
                     b.system.elements.midedges.push(el);
                 }
+                for mut el in bending.clamped_vertices {
+                    el.map_vertices(global);
+                    b.system.elements.shell_clamps.push(el);
+                }
             }
         }
         Ok(())

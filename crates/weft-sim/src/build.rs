@@ -300,6 +300,7 @@ pub fn compile_within(
         ("membranes", el.membranes.len()),
         ("shell_bends", el.shells.len()),
         ("shell_midedges", el.midedges.len()),
+        ("shell_clamps", el.shell_clamps.len()),
         ("rod_stretches", el.stretches.len()),
         ("rod_bends", el.bends.len()),
         ("rod_clamps", el.clamps.len()),

@@ -60,7 +60,14 @@ pub(crate) fn cloth_ghosts(
             attachment: a.name.clone(),
             message: m,
         };
+        let n = scene[ti].vertex_count();
         for &[p, q] in &att.clamps {
+            if p == q || p as usize >= n || q as usize >= n {
+                return Err(fail(format!(
+                    "clamp edge ({p}, {q}) is not an edge of '{}' ({n} vertices)",
+                    att.target
+                )));
+            }
             if !(att.vertices.contains(&p) && att.vertices.contains(&q)) {
                 return Err(fail(format!(
                     "clamp edge ({p}, {q}): both its vertices must be attached"
@@ -76,7 +83,12 @@ pub(crate) fn cloth_ghosts(
                     att.target
                 )));
             };
-            let apex = *t.iter().find(|&&v| v != p && v != q).expect("a triangle");
+            let Some(&apex) = t.iter().find(|&&v| v != p && v != q && (v as usize) < n) else {
+                return Err(fail(format!(
+                    "clamp edge ({p}, {q}): its triangle {t:?} has no third vertex in '{}'",
+                    att.target
+                )));
+            };
             let g = |v: u32| x[r.start + v as usize];
             let position = mirror(g(p), g(q), g(apex));
             out.push((

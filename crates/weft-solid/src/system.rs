@@ -1,7 +1,8 @@
 //! The mechanical system: lumped masses, pinned vertices, energy elements, and its state.
 
 use crate::energy::{
-    Element, Hinge, Membrane, MidedgeBend, RodBend, RodClamp, RodStretch, ShellBend, Spring,
+    Element, Hinge, Membrane, MidedgeBend, RodBend, RodClamp, RodStretch, ShellBend, ShellClamp,
+    Spring,
 };
 use nalgebra::{Matrix3, Vector3};
 
@@ -16,6 +17,8 @@ pub struct Elements {
     pub shells: Vec<ShellBend>,
     /// Cloth bending, deviatoric part (per triangle).
     pub midedges: Vec<MidedgeBend>,
+    /// Cloth bending, trace part at held vertices on clamped edges.
+    pub shell_clamps: Vec<ShellClamp>,
     /// Rod segments.
     pub stretches: Vec<RodStretch>,
     /// Rod bending at interior vertices.
@@ -28,12 +31,14 @@ pub struct Elements {
 
 impl Elements {
     /// Calls `f` on every element in a fixed order (membranes, hinges, shells,
-    /// midedges, stretches, bends, clamps, springs): assembly order is part of determinism.
+    /// midedges, shell clamps, stretches, bends, clamps, springs): assembly order is part of
+    /// determinism.
     pub fn for_each(&self, mut f: impl FnMut(&dyn Element)) {
         self.membranes.iter().for_each(|e| f(e));
         self.hinges.iter().for_each(|e| f(e));
         self.shells.iter().for_each(|e| f(e));
         self.midedges.iter().for_each(|e| f(e));
+        self.shell_clamps.iter().for_each(|e| f(e));
         self.stretches.iter().for_each(|e| f(e));
         self.bends.iter().for_each(|e| f(e));
         self.clamps.iter().for_each(|e| f(e));
@@ -50,7 +55,15 @@ impl Elements {
             )*};
         }
         pick!(
-            membranes, hinges, shells, midedges, stretches, bends, clamps, springs
+            membranes,
+            hinges,
+            shells,
+            midedges,
+            shell_clamps,
+            stretches,
+            bends,
+            clamps,
+            springs
         );
         panic!("element index out of range")
     }
@@ -60,6 +73,7 @@ impl Elements {
             + self.hinges.len()
             + self.shells.len()
             + self.midedges.len()
+            + self.shell_clamps.len()
             + self.stretches.len()
             + self.bends.len()
             + self.clamps.len()

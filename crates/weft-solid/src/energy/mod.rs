@@ -7,6 +7,7 @@ mod membrane;
 mod midedge;
 mod rod;
 mod shell;
+mod shell_clamp;
 mod spring;
 
 pub use hinge::{Hinge, dihedral_angle, dihedral_gradient};
@@ -17,6 +18,7 @@ pub use shell::{
     ClampedEdge, MAX_STENCIL, ShellBend, ShellBending, ShellError, shell_bending,
     shell_bending_clamped,
 };
+pub use shell_clamp::ShellClamp;
 pub use spring::Spring;
 
 use nalgebra::{SMatrix, SVector, Vector3};

@@ -42,7 +42,7 @@
 //! Held vertices on a clamped edge measure their partial ring against the clamp's normal
 //! instead of their own, so the edge holds the cloth's tangent plane ([`shell_bending_clamped`]).
 
-use super::{Element, Local, MidedgeBend};
+use super::{Element, Local, MidedgeBend, ShellClamp};
 use nalgebra::Vector3;
 use num_dual::{Dual64, DualNum};
 
@@ -85,17 +85,17 @@ pub enum ShellError {
     },
 }
 
-fn sub<S: DualNum<Primitive = f64> + Copy>(a: [S; 3], b: [S; 3]) -> [S; 3] {
+pub(super) fn sub<S: DualNum<Primitive = f64> + Copy>(a: [S; 3], b: [S; 3]) -> [S; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
-fn cross<S: DualNum<Primitive = f64> + Copy>(a: [S; 3], b: [S; 3]) -> [S; 3] {
+pub(super) fn cross<S: DualNum<Primitive = f64> + Copy>(a: [S; 3], b: [S; 3]) -> [S; 3] {
     [
         a[1] * b[2] - a[2] * b[1],
         a[2] * b[0] - a[0] * b[2],
         a[0] * b[1] - a[1] * b[0],
     ]
 }
-fn dot<S: DualNum<Primitive = f64> + Copy>(a: [S; 3], b: [S; 3]) -> S {
+pub(super) fn dot<S: DualNum<Primitive = f64> + Copy>(a: [S; 3], b: [S; 3]) -> S {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
@@ -107,6 +107,9 @@ pub struct ShellBending {
     pub vertices: Vec<ShellBend>,
     /// Deviatoric part: one element per triangle, in triangle order.
     pub triangles: Vec<MidedgeBend>,
+    /// Trace part of held vertices on clamped edges (in their place in `vertices`), in vertex
+    /// order.
+    pub clamped_vertices: Vec<ShellClamp>,
     /// Edges shared by more than two triangles. There a curvature has no meaning (three sheets
     /// meet): their vertices get no trace term and the edge is free for the triangles on it.
     pub non_manifold_edges: usize,
@@ -141,10 +144,9 @@ pub struct ClampedEdge {
 /// - the deviator: a triangle on a clamped edge takes the ghost as that edge's wing, with the
 ///   edge's weight doubled (see `MidedgeBend::new`);
 /// - the trace: a held vertex on a clamped edge keeps its weights and (half) Voronoi area
-///   from the real triangles, but measures y along the clamp's normal, the normal of its
-///   ghost triangles, instead of its own ring's (which turns with the cloth and would make
-///   the held row a hinge). With the cloth tilted by θ about the clamp line, y·n = θ·(half
-///   the chord of its boundary neighbours), so the energy is the plate's over the half cell.
+///   from the real triangles, but measures its Laplacian's turn against the clamp's frame
+///   (from its ghost triangles) instead of its own ring's normal (which turns with the cloth
+///   and would make the held row a hinge): a [`ShellClamp`].
 ///
 /// `rest` holds the mesh's vertices and then the ghosts; `tris` uses only the former.
 pub fn shell_bending_clamped(
@@ -218,6 +220,7 @@ pub fn shell_bending_clamped(
         }
     }
     let mut out = Vec::new();
+    let mut clamped_vertices = Vec::new();
     for (v, faces) in ring.iter().enumerate() {
         if faces.is_empty() || skip[v] {
             continue;
@@ -276,8 +279,15 @@ pub fn shell_bending_clamped(
             return Err(ShellError::Degenerate { triangle: faces[0] });
         }
         if !ghost_faces[v].is_empty() {
-            // Clamped: the normal is the clamp's (ghost weights stay zero).
-            local_faces = ghost_faces[v].iter().map(|f| f.map(local)).collect();
+            // Held on a clamped edge: measured against the clamp (ghost weights stay zero).
+            let ghosts = ghost_faces[v].iter().map(|f| f.map(local)).collect();
+            let p: Vec<[f64; 3]> = stencil.iter().map(|&u| rest[u as usize].into()).collect();
+            let k = 0.5 * (1.0 + nu) * d / area;
+            match ShellClamp::new(stencil, w, ghosts, &p, k) {
+                Some(c) => clamped_vertices.push(c),
+                None => return Err(ShellError::Degenerate { triangle: faces[0] }),
+            }
+            continue;
         }
         let mut e = ShellBend {
             v: stencil.into(),
@@ -293,6 +303,7 @@ pub fn shell_bending_clamped(
     Ok(ShellBending {
         vertices: out,
         triangles,
+        clamped_vertices,
         non_manifold_edges,
     })
 }
@@ -478,6 +489,79 @@ mod tests {
         for v in [5usize, 6, 0, 1] {
             check(&els[v], &y, 1e-7, 1e-5);
         }
+    }
+
+    /// A 4 × 4 patch clamped along its first row (y = 0), ghosts appended: finite
+    /// differences of the clamped trace and midedge terms with the ghosts moved too; the rest
+    /// shape (curved) and a rigid motion of everything, ghosts included, cost nothing; turning
+    /// the cloth about the clamp line costs, and more past 90° than at it (the half-angle
+    /// tangent does not go slack).
+    #[test]
+    fn clamped_edges_finite_differences_rest_and_rigid_motion() {
+        let (x, t) = grid(4, 0.3, 0.2);
+        // Ghosts mirror each first-row edge's triangle across the edge.
+        let with_ghosts = |pos: &[Vector3<f64>]| {
+            let mut rest = pos.to_vec();
+            let mut clamps = Vec::new();
+            for i in 0..3u32 {
+                let tri = t
+                    .iter()
+                    .find(|f| f.contains(&i) && f.contains(&(i + 1)))
+                    .unwrap();
+                let apex = *tri.iter().find(|&&v| v != i && v != i + 1).unwrap();
+                let (a, b, c) = (pos[i as usize], pos[i as usize + 1], pos[apex as usize]);
+                let d = b - a;
+                let foot = a + d * ((c - a).dot(&d) / d.norm_squared());
+                clamps.push(ClampedEdge {
+                    edge: [i, i + 1],
+                    ghost: rest.len() as u32,
+                });
+                rest.push(2.0 * foot - c);
+            }
+            (rest, clamps)
+        };
+        let (rest, clamps) = with_ghosts(&bent(&x, 0.8, 0.3, -0.2));
+        let els = shell_bending_clamped(&rest, &t, 0.7, 0.3, &clamps).unwrap();
+        assert_eq!(els.clamped_vertices.len(), 4);
+        assert_eq!(els.vertices.len(), 16 - 4);
+        let mut y = bent(&rest, 0.5, -0.9, 0.4);
+        y[5].z += 0.05;
+        y[17].y -= 0.03;
+        for e in &els.clamped_vertices {
+            check(e, &y, 1e-7, 1e-5);
+        }
+        for e in els.triangles.iter().take(6) {
+            check(e, &y, 1e-7, 1e-5);
+        }
+        let r = nalgebra::Rotation3::from_euler_angles(0.3, -0.7, 1.1);
+        let moved: Vec<_> = rest
+            .iter()
+            .map(|p| r * p + Vector3::new(1.0, 2.0, 3.0))
+            .collect();
+        let all: Vec<&dyn Element> = els
+            .clamped_vertices
+            .iter()
+            .map(|e| e as &dyn Element)
+            .chain(els.triangles.iter().map(|e| e as &dyn Element))
+            .collect();
+        for e in &all {
+            assert!(e.energy(&rest).abs() < 1e-28, "{}", e.energy(&rest));
+            assert!(e.energy(&moved) < 1e-26, "{}", e.energy(&moved));
+        }
+        // Turn the flat cloth (not the ghosts) about the clamp line (the x axis) by θ.
+        let (flat_rest, clamps) = with_ghosts(&x);
+        let flat = shell_bending_clamped(&flat_rest, &t, 0.7, 0.0, &clamps).unwrap();
+        let turned = |th: f64| -> f64 {
+            let r = nalgebra::Rotation3::from_axis_angle(&Vector3::x_axis(), th);
+            let mut p = flat_rest.clone();
+            for q in p.iter_mut().take(16) {
+                *q = r * *q;
+            }
+            flat.clamped_vertices.iter().map(|e| e.energy(&p)).sum()
+        };
+        let pi = std::f64::consts::PI;
+        let (e45, e90, e135) = (turned(0.25 * pi), turned(0.5 * pi), turned(0.75 * pi));
+        assert!(0.0 < e45 && e45 < e90 && e90 < e135, "{e45} {e90} {e135}");
     }
 
     #[test]
