@@ -11,6 +11,7 @@
 //! read and write as arguments, print nothing and touch no files.
 #![warn(missing_docs)]
 
+pub mod contact;
 pub mod energy;
 pub mod integrator;
 mod settings;
