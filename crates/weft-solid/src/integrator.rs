@@ -16,9 +16,12 @@
 //! assembly and the Newton loop; splitting it would spread those invariants over files. Its
 //! settings, statistics and errors are in `settings.rs`.
 
+mod contacts;
+
 use crate::energy::Local;
 pub use crate::settings::{Method, Settings, StepError, StepStats, StopCheck};
 use crate::system::{SolidSystem, State};
+pub use contacts::{ContactSet, ContactStats, VertexContact};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::perm::PermRef;
 use faer::sparse::linalg::amd;
@@ -463,6 +466,18 @@ impl Integrator {
     /// static body, a straight chain's zero transverse stiffness), the diagonal shift grows
     /// ×100 from 1e-10 of the largest diagonal entry until it succeeds (Levenberg–Marquardt).
     fn newton_direction(&mut self, stats: &mut StepStats, shift: f64) -> Result<(), StepError> {
+        self.factor(stats, shift)?;
+        for (d, g) in self.dir.iter_mut().zip(&self.grad) {
+            *d = -g;
+        }
+        let mut dir = std::mem::take(&mut self.dir);
+        self.solve_in_place(stats, &mut dir);
+        self.dir = dir;
+        Ok(())
+    }
+
+    /// Factorizes `values` + `shift`·I (growing the shift as [`Self::newton_direction`] says).
+    fn factor(&mut self, stats: &mut StepStats, shift: f64) -> Result<(), StepError> {
         let t = Instant::now();
         let dofs = 3 * self.n_free;
         let scale = self
@@ -510,16 +525,18 @@ impl Integrator {
                 }
             }
         }
-        let llt = faer::sparse::linalg::cholesky::LltRef::new(&self.symbolic, &self.l_values);
         stats.factor_seconds += t.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    /// Solves with the last factor in place (`b` ← H⁻¹ b, 3 entries per free vertex).
+    fn solve_in_place(&mut self, stats: &mut StepStats, b: &mut [f64]) {
         let t = Instant::now();
-        for (d, g) in self.dir.iter_mut().zip(&self.grad) {
-            *d = -g;
-        }
-        let rhs = MatMut::from_column_major_slice_mut(&mut self.dir, dofs, 1);
+        let llt = faer::sparse::linalg::cholesky::LltRef::new(&self.symbolic, &self.l_values);
+        let dofs = 3 * self.n_free;
+        let rhs = MatMut::from_column_major_slice_mut(b, dofs, 1);
         llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut self.mem));
         stats.solve_seconds += t.elapsed().as_secs_f64();
-        Ok(())
     }
 
     /// Advances `state` by `h`. Pinned vertices move to `pinned_to` (all vertices' targets;
