@@ -589,6 +589,27 @@ impl Integrator {
             state.v.iter_mut().for_each(|v| *v = Vector3::zeros());
             return Ok(stats);
         }
+        self.predict(sys, state, &mut x, &target, guess, h);
+        let stats = self.minimize(sys, &mut x, &x0, Mode::Dynamic { h }, settings)?;
+        for i in 0..self.n {
+            state.v[i] = (x[i] - x0[i]) / h;
+        }
+        state.x = x;
+        Ok(stats)
+    }
+
+    /// The start of an implicit step from `state` (x⁰): held vertices at their targets, x̂ for
+    /// every vertex, and the first iterate `x` (the guess, else x⁰ + h v⁰).
+    fn predict(
+        &mut self,
+        sys: &SolidSystem,
+        state: &State,
+        x: &mut [Vector3<f64>],
+        target: &dyn Fn(usize) -> Vector3<f64>,
+        guess: Option<&[Vector3<f64>]>,
+        h: f64,
+    ) {
+        let x0 = &state.x;
         for i in 0..self.n {
             if self.free_of[i] == NONE {
                 x[i] = target(i);
@@ -600,12 +621,6 @@ impl Integrator {
                 x[i] = guess.map_or(x0[i] + h * state.v[i], |g| g[i]);
             }
         }
-        let stats = self.minimize(sys, &mut x, &x0, Mode::Dynamic { h }, settings)?;
-        for i in 0..self.n {
-            state.v[i] = (x[i] - x0[i]) / h;
-        }
-        state.x = x;
-        Ok(stats)
     }
 
     /// Moves `state` to static equilibrium under gravity, the constant forces and the elastic
@@ -727,11 +742,7 @@ impl Integrator {
             }
         }
         if !stats.converged {
-            return Err(StepError::NotConverged {
-                iterations: stats.iterations,
-                residual: stats.residuals.last().copied().unwrap_or(f64::NAN),
-                tolerance: settings.tolerance,
-            });
+            return Err(stats.not_converged(settings.tolerance));
         }
         if !x.iter().all(|p| p.iter().all(|c| c.is_finite())) {
             return Err(StepError::NonFinite {

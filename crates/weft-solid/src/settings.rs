@@ -60,6 +60,17 @@ pub struct StepStats {
     pub solve_seconds: f64,
 }
 
+impl StepStats {
+    /// The error of a step that ran out of iterations with these statistics.
+    pub(crate) fn not_converged(&self, tolerance: f64) -> StepError {
+        StepError::NotConverged {
+            iterations: self.iterations,
+            residual: self.residuals.last().copied().unwrap_or(f64::NAN),
+            tolerance,
+        }
+    }
+}
+
 /// Why a step failed. The state is left as it was before the step.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum StepError {

@@ -73,16 +73,7 @@ impl Integrator {
         let x0 = state.x.clone();
         let target = |i: usize| pinned_to.map_or(x0[i], |p| p[i]);
         let mut x = state.x.clone();
-        for i in 0..self.n {
-            if self.free_of[i] == NONE {
-                x[i] = target(i);
-                self.x_hat[i] = x[i];
-            } else {
-                self.x_hat[i] =
-                    x0[i] + h * state.v[i] + h * h * (sys.gravity + sys.force(i) / sys.mass[i]);
-                x[i] = x0[i] + h * state.v[i];
-            }
-        }
+        self.predict(sys, state, &mut x, &target, None, h);
         // Contacts on held vertices have nothing to move.
         let active: Vec<(usize, &VertexContact)> = contacts
             .iter()
@@ -175,11 +166,7 @@ impl Integrator {
             }
         }
         if !stats.converged {
-            return Err(StepError::NotConverged {
-                iterations: stats.iterations,
-                residual: stats.residuals.last().copied().unwrap_or(f64::NAN),
-                tolerance: settings.tolerance,
-            });
+            return Err(stats.not_converged(settings.tolerance));
         }
         for (k, (_, c)) in active.iter().enumerate() {
             let i = c.vertex as usize;
@@ -203,6 +190,23 @@ mod tests {
     use super::*;
     use crate::settings::Method;
 
+    /// A free 1 kg vertex at the origin at rest under gravity −y, Newton to 1e-12 m/s.
+    fn one_vertex() -> (SolidSystem, State, Integrator, Settings) {
+        let mut sys = SolidSystem::new(vec![1.0]);
+        sys.gravity = Vector3::new(0.0, -9.81, 0.0);
+        let s = State {
+            x: vec![Vector3::zeros()],
+            v: vec![Vector3::zeros()],
+        };
+        let integ = Integrator::new(&sys).unwrap();
+        let settings = Settings {
+            method: Method::Newton,
+            tolerance: 1e-12,
+            max_iterations: 20,
+        };
+        (sys, s, integ, settings)
+    }
+
     /// One 1 kg vertex on a plane through the origin tilted θ about z, friction μ, gravity −y,
     /// h = 0.01 s for 1 s: (displacement along the slope, velocity along it, largest speed
     /// off the plane).
@@ -212,18 +216,7 @@ mod tests {
         let t1 = Vector3::new(th.cos(), th.sin(), 0.0);
         let t2 = Vector3::z();
         let frame = Matrix3::from_rows(&[n.transpose(), t1.transpose(), t2.transpose()]);
-        let mut sys = SolidSystem::new(vec![1.0]);
-        sys.gravity = Vector3::new(0.0, -9.81, 0.0);
-        let mut s = State {
-            x: vec![Vector3::zeros()],
-            v: vec![Vector3::zeros()],
-        };
-        let mut integ = Integrator::new(&sys).unwrap();
-        let settings = Settings {
-            method: Method::Newton,
-            tolerance: 1e-12,
-            max_iterations: 20,
-        };
+        let (sys, mut s, mut integ, settings) = one_vertex();
         let mut off = 0.0f64;
         for _ in 0..100 {
             let c = VertexContact {
@@ -277,18 +270,7 @@ mod tests {
     fn cohesion_holds_a_vertex_under_a_ceiling_up_to_its_weight() {
         let hang = |factor: f64| {
             let frame = Matrix3::new(0.0, -1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0);
-            let mut sys = SolidSystem::new(vec![1.0]);
-            sys.gravity = Vector3::new(0.0, -9.81, 0.0);
-            let mut s = State {
-                x: vec![Vector3::zeros()],
-                v: vec![Vector3::zeros()],
-            };
-            let mut integ = Integrator::new(&sys).unwrap();
-            let settings = Settings {
-                method: Method::Newton,
-                tolerance: 1e-12,
-                max_iterations: 20,
-            };
+            let (sys, mut s, mut integ, settings) = one_vertex();
             let h = 0.01;
             for _ in 0..50 {
                 let c = VertexContact {
