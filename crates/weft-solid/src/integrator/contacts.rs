@@ -58,7 +58,7 @@ impl Integrator {
     /// [`Integrator::step`] with `set.contacts`: implicit Euler whose end-of-step velocities
     /// obey Signorini–Coulomb at every contact. ADMM stops when the split's primal and dual
     /// residuals are below `settings.tolerance` [m/s], within `set.max_admm` iterations a
-    /// Newton iteration. Full Newton steps (no line search yet).
+    /// Newton iteration; each Newton update is line-searched on the primal objective.
     pub fn step_contacts(
         &mut self,
         sys: &SolidSystem,
@@ -87,6 +87,8 @@ impl Integrator {
         let mut cstats = ContactStats::default();
         let dofs = 3 * self.n_free;
         let mut delta = vec![0.0; dofs];
+        // The velocity each contact's term pulls its vertex towards in the last primal step.
+        let mut want = vec![Vector3::zeros(); active.len()];
         let diag =
             |s: &Self, f: usize, c: usize| s.col_ptr[3 * f + c] + 3 * s.diag_slot[f] as usize + c;
         for it in 0..settings.max_iterations.max(1) {
@@ -118,8 +120,8 @@ impl Integrator {
                 for (k, (f, c)) in active.iter().enumerate() {
                     let i = c.vertex as usize;
                     let v = (x[i] - x0[i]) / h;
-                    let want = c.velocity + c.frame.transpose() * (z[k] + r[k] / rho[k]);
-                    let g = rho[k] / h * (v - want);
+                    want[k] = c.velocity + c.frame.transpose() * (z[k] + r[k] / rho[k]);
+                    let g = rho[k] / h * (v - want[k]);
                     for a in 0..3 {
                         delta[3 * f + a] -= g[a];
                     }
@@ -146,15 +148,44 @@ impl Integrator {
                     break;
                 }
             }
-            let mut step = 0.0f64;
-            for (xi, &f) in x.iter_mut().zip(&self.free_of) {
-                if f != NONE {
-                    let f = 3 * f as usize;
-                    let d = Vector3::new(delta[f], delta[f + 1], delta[f + 2]);
-                    step = step.max(d.amax() / h);
-                    *xi += d;
+            // Backtracking (Armijo) on the primal objective at the last primal step's targets,
+            // whose Newton direction delta is: it descends (the factored matrix is SPD).
+            let phi = |s: &Self, x: &[Vector3<f64>]| {
+                let mut e = s.objective(sys, x, &x0, Mode::Dynamic { h });
+                for (k, (_, c)) in active.iter().enumerate() {
+                    let i = c.vertex as usize;
+                    e += 0.5 * rho[k] * ((x[i] - x0[i]) / h - want[k]).norm_squared();
                 }
+                e
+            };
+            let mut slope: f64 = self.grad.iter().zip(&delta).map(|(g, d)| g * d).sum();
+            for (k, (f, c)) in active.iter().enumerate() {
+                let i = c.vertex as usize;
+                let g = rho[k] / h * ((x[i] - x0[i]) / h - want[k]);
+                slope += (0..3).map(|a| g[a] * delta[3 * f + a]).sum::<f64>();
             }
+            let e0 = phi(self, &x);
+            let xmax = x.iter().fold(0.0f64, |m, p| m.max(p.amax()));
+            let mut alpha = 1.0;
+            let mut trial = x.clone();
+            loop {
+                for ((t, p), &f) in trial.iter_mut().zip(&x).zip(&self.free_of) {
+                    *t = if f == NONE {
+                        *p
+                    } else {
+                        let f = 3 * f as usize;
+                        p + alpha * Vector3::new(delta[f], delta[f + 1], delta[f + 2])
+                    };
+                }
+                let unresolvable = -slope * alpha <= 64.0 * f64::EPSILON * self.force_scale * xmax;
+                if phi(self, &trial) <= e0 + 1e-4 * alpha * slope || unresolvable || alpha < 1e-10 {
+                    break;
+                }
+                alpha *= 0.5;
+                stats.halvings += 1;
+            }
+            let step = alpha * delta.iter().fold(0.0f64, |m, d| m.max(d.abs())) / h;
+            x = trial;
             stats.iterations = it + 1;
             stats.residuals.push(step);
             if !step.is_finite() {
@@ -304,5 +335,68 @@ mod tests {
         };
         assert!(hang(1.05).abs() < 1e-9, "{}", hang(1.05));
         assert!(hang(0.95) < -1e-2, "{}", hang(0.95));
+    }
+
+    /// Nonlinear with contacts: a stiff chain (4 segments of 0.1 m, EA = 10⁴ N, 10 g a
+    /// vertex) pinned at (0, 0.3, 0), released horizontal, falls onto a floor y = 0 with
+    /// friction 0.3. Every free vertex gets a floor contact each step (its gap the height it
+    /// starts the step at). Every step converges, no vertex ever goes below the floor by more
+    /// than 1e-9 m, and the chain comes to lie on it (its tip within 1 mm of the floor).
+    #[test]
+    fn a_stiff_chain_falls_onto_a_floor_without_entering_it() {
+        use crate::energy::RodStretch;
+        let n = 5;
+        let mut sys = SolidSystem::new(vec![0.01; n]);
+        sys.gravity = Vector3::new(0.0, -9.81, 0.0);
+        sys.pinned[0] = true;
+        for i in 0..n as u32 - 1 {
+            sys.elements.stretches.push(RodStretch {
+                v: [i, i + 1],
+                rest_length: 0.1,
+                k: 1e4,
+            });
+        }
+        let mut s = State {
+            x: (0..n)
+                .map(|i| Vector3::new(0.1 * i as f64, 0.3, 0.0))
+                .collect(),
+            v: vec![Vector3::zeros(); n],
+        };
+        let mut integ = Integrator::new(&sys).unwrap();
+        let settings = Settings {
+            method: Method::Newton,
+            tolerance: 1e-9,
+            max_iterations: 50,
+        };
+        let frame = Matrix3::new(0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0);
+        let mut lowest = f64::INFINITY;
+        for _ in 0..200 {
+            let contacts: Vec<VertexContact> = (1..n as u32)
+                .map(|i| VertexContact {
+                    vertex: i,
+                    frame,
+                    gap: s.x[i as usize].y,
+                    velocity: Vector3::zeros(),
+                    friction: 0.3,
+                    cohesion: 0.0,
+                })
+                .collect();
+            integ
+                .step_contacts(
+                    &sys,
+                    &mut s,
+                    None,
+                    0.005,
+                    &settings,
+                    ContactSet {
+                        contacts: &contacts,
+                        max_admm: 500,
+                    },
+                )
+                .unwrap();
+            lowest = lowest.min(s.x.iter().map(|p| p.y).fold(f64::INFINITY, f64::min));
+        }
+        assert!(lowest > -1e-9, "{lowest}");
+        assert!(s.x[n - 1].y < 1e-3, "{:?}", s.x[n - 1]);
     }
 }
