@@ -31,6 +31,9 @@ pub struct VertexContact {
     pub friction: f64,
     /// The most the collider may pull, as an impulse over the step [N·s] (cohesion).
     pub cohesion: f64,
+    /// Damping of the normal relative velocity [1/s]: a force −c m (n·(v − v_c)) n on the
+    /// vertex over the step (implicit: ½ c m h (n·(v − v_c))² in the objective).
+    pub damping: f64,
 }
 
 /// The contacts of a step and how far their ADMM may go.
@@ -40,6 +43,9 @@ pub struct ContactSet<'a> {
     pub contacts: &'a [VertexContact],
     /// ADMM iterations allowed per Newton iteration.
     pub max_admm: usize,
+    /// Impulses to start from, one per contact [N·s] in its frame (the last step's, matched
+    /// by the caller; shorter than `contacts`: the rest start at zero).
+    pub warm: &'a [[f64; 3]],
 }
 
 /// What the contact solve did over a step.
@@ -47,10 +53,13 @@ pub struct ContactSet<'a> {
 pub struct ContactStats {
     /// ADMM iterations, summed over Newton iterations.
     pub admm_iterations: usize,
+    /// Refactorizations made to rebalance ρ between ADMM's residuals.
+    pub refactorizations: usize,
     /// The largest distance from Coulomb's law at the end (`contact::residual`, as a
     /// velocity: impulse residuals divided by ρ).
     pub max_residual: f64,
-    /// Each contact's impulse in its frame [N·s] (normal first).
+    /// Each contact's impulse in its frame [N·s] (normal first), in `contacts`' order (zero
+    /// for contacts on held vertices).
     pub impulses: Vec<[f64; 3]>,
 }
 
@@ -74,15 +83,36 @@ impl Integrator {
         let target = |i: usize| pinned_to.map_or(x0[i], |p| p[i]);
         let mut x = state.x.clone();
         self.predict(sys, state, &mut x, &target, None, h);
-        // Contacts on held vertices have nothing to move.
-        let active: Vec<(usize, &VertexContact)> = contacts
-            .iter()
-            .filter(|c| (c.vertex as usize) < self.n && self.free_of[c.vertex as usize] != NONE)
-            .map(|c| (self.free_of[c.vertex as usize] as usize, c))
+        // Contacts on held vertices have nothing to move; `index` maps back to `contacts`.
+        let index: Vec<usize> = (0..contacts.len())
+            .filter(|&k| {
+                let v = contacts[k].vertex as usize;
+                v < self.n && self.free_of[v] != NONE
+            })
             .collect();
+        let active: Vec<(usize, &VertexContact)> = index
+            .iter()
+            .map(|&k| {
+                let c = &contacts[k];
+                (self.free_of[c.vertex as usize] as usize, c)
+            })
+            .collect();
+        // ρ_c = σ ρ̂_c: ρ̂_c the vertex's effective mass along the normal, h² nᵀ(M + h²K)ᵢᵢ n
+        // (a diagonal Delassus approximation, Daviet 2020), σ one scale for every contact,
+        // balanced between the ADMM residuals (Boyd et al. 2011, §3.4.1) at the cost of a
+        // refactorization whenever it changes.
+        let mut rho_hat = vec![0.0; active.len()];
+        let mut sigma = 1.0;
         let mut rho = vec![0.0; active.len()];
         let mut z = vec![Vector3::zeros(); active.len()];
-        let mut r = vec![Vector3::zeros(); active.len()];
+        let mut r: Vec<Vector3<f64>> = index
+            .iter()
+            .map(|&k| {
+                set.warm
+                    .get(k)
+                    .map_or_else(Vector3::zeros, |w| Vector3::from(*w))
+            })
+            .collect();
         let mut stats = StepStats::default();
         let mut cstats = ContactStats::default();
         let dofs = 3 * self.n_free;
@@ -91,28 +121,53 @@ impl Integrator {
         let mut want = vec![Vector3::zeros(); active.len()];
         let diag =
             |s: &Self, f: usize, c: usize| s.col_ptr[3 * f + c] + 3 * s.diag_slot[f] as usize + c;
+        let block = |s: &Self, f: usize, a: usize, b: usize| {
+            s.col_ptr[3 * f + b] + 3 * s.diag_slot[f] as usize + a
+        };
         for it in 0..settings.max_iterations.max(1) {
             if self.should_stop() {
                 return Err(StepError::Interrupted { iteration: it });
             }
             self.assemble(sys, &x, &x0, Mode::Dynamic { h });
             if it == 0 {
-                // ρ_c: the vertex's effective mass, (M + h²K)ᵢᵢ (a diagonal Delassus
-                // approximation), fixed for the step so the factor's structure holds.
-                for (k, (f, _)) in active.iter().enumerate() {
-                    let d: f64 = (0..3).map(|c| self.values[diag(self, *f, c)]).sum();
-                    rho[k] = h * h * d / 3.0;
+                for (k, (f, c)) in active.iter().enumerate() {
+                    let n = c.frame.row(0).transpose();
+                    let mut d = 0.0;
+                    for a in 0..3 {
+                        for b in 0..3 {
+                            d += n[a] * self.values[block(self, *f, a, b)] * n[b];
+                        }
+                    }
+                    rho_hat[k] = h * h * d;
+                    // z starts at the relative velocity of the prediction, made admissible
+                    // (u_N ≥ −gap/h), so the first primal step is not pulled to rest.
+                    let i = c.vertex as usize;
+                    let mut u = c.frame * ((x[i] - x0[i]) / h - c.velocity);
+                    u[0] = u[0].max(-c.gap / h);
+                    z[k] = u;
                 }
             }
-            for (k, (f, _)) in active.iter().enumerate() {
-                for c in 0..3 {
-                    let s = diag(self, *f, c);
+            for (k, (f, c)) in active.iter().enumerate() {
+                rho[k] = sigma * rho_hat[k];
+                for a in 0..3 {
+                    let s = diag(self, *f, a);
                     self.values[s] += rho[k] / (h * h);
+                }
+                let dm = c.damping * sys.mass[c.vertex as usize] / h;
+                if dm > 0.0 {
+                    // d m/h · n nᵀ on the vertex's diagonal block (its full 3×3 is stored).
+                    let n = c.frame.row(0).transpose();
+                    for a in 0..3 {
+                        for b in 0..3 {
+                            let slot = block(self, *f, a, b);
+                            self.values[slot] += dm * n[a] * n[b];
+                        }
+                    }
                 }
             }
             self.factor(&mut stats, 0.0)?;
             let mut admm_converged = false;
-            for _ in 0..max_admm.max(1) {
+            for round in 0..max_admm.max(1) {
                 cstats.admm_iterations += 1;
                 for (d, g) in delta.iter_mut().zip(&self.grad) {
                     *d = -g;
@@ -121,7 +176,7 @@ impl Integrator {
                     let i = c.vertex as usize;
                     let v = (x[i] - x0[i]) / h;
                     want[k] = c.velocity + c.frame.transpose() * (z[k] + r[k] / rho[k]);
-                    let g = rho[k] / h * (v - want[k]);
+                    let g = rho[k] / h * (v - want[k]) + damping_force(sys, c, v);
                     for a in 0..3 {
                         delta[3 * f + a] -= g[a];
                     }
@@ -147,6 +202,31 @@ impl Integrator {
                     admm_converged = true;
                     break;
                 }
+                // Residual balancing every few iterations: a lagging primal residual asks
+                // for a larger ρ, a lagging dual one for a smaller.
+                if round % 8 == 7 {
+                    let factor = if dual > 10.0 * primal {
+                        0.25
+                    } else if primal > 10.0 * dual {
+                        4.0
+                    } else {
+                        1.0
+                    };
+                    let next = (sigma * factor).clamp(1e-8, 1e8);
+                    if next != sigma {
+                        for (k, (f, _)) in active.iter().enumerate() {
+                            let change = (next - sigma) * rho_hat[k];
+                            for a in 0..3 {
+                                let s = diag(self, *f, a);
+                                self.values[s] += change / (h * h);
+                            }
+                            rho[k] = next * rho_hat[k];
+                        }
+                        sigma = next;
+                        cstats.refactorizations += 1;
+                        self.factor(&mut stats, 0.0)?;
+                    }
+                }
             }
             // Backtracking (Armijo) on the primal objective at the last primal step's targets,
             // whose Newton direction delta is: it descends (the factored matrix is SPD).
@@ -154,14 +234,18 @@ impl Integrator {
                 let mut e = s.objective(sys, x, &x0, Mode::Dynamic { h });
                 for (k, (_, c)) in active.iter().enumerate() {
                     let i = c.vertex as usize;
-                    e += 0.5 * rho[k] * ((x[i] - x0[i]) / h - want[k]).norm_squared();
+                    let v = (x[i] - x0[i]) / h;
+                    e += 0.5 * rho[k] * (v - want[k]).norm_squared();
+                    let un = c.frame.row(0).transpose().dot(&(v - c.velocity));
+                    e += 0.5 * c.damping * sys.mass[i] * h * un * un;
                 }
                 e
             };
             let mut slope: f64 = self.grad.iter().zip(&delta).map(|(g, d)| g * d).sum();
             for (k, (f, c)) in active.iter().enumerate() {
                 let i = c.vertex as usize;
-                let g = rho[k] / h * ((x[i] - x0[i]) / h - want[k]);
+                let v = (x[i] - x0[i]) / h;
+                let g = rho[k] / h * (v - want[k]) + damping_force(sys, c, v);
                 slope += (0..3).map(|a| g[a] * delta[3 * f + a]).sum::<f64>();
             }
             let e0 = phi(self, &x);
@@ -207,13 +291,25 @@ impl Integrator {
             let res = residual(u.into(), rr.into(), c.friction, c.cohesion);
             cstats.max_residual = cstats.max_residual.max(res / rho[k].max(f64::MIN_POSITIVE));
         }
-        cstats.impulses = r.iter().map(|&v| v.into()).collect();
+        cstats.impulses = vec![[0.0; 3]; contacts.len()];
+        for (&k, rk) in index.iter().zip(&r) {
+            cstats.impulses[k] = (*rk).into();
+        }
         for ((v, xi), x0i) in state.v.iter_mut().zip(&x).zip(&x0) {
             *v = (xi - x0i) / h;
         }
         state.x = x;
         Ok((stats, cstats))
     }
+}
+
+/// The gradient of the contact's damping term ½ c m h (n·(v − v_c))² in x: c m (n·(v − v_c)) n.
+fn damping_force(sys: &SolidSystem, c: &VertexContact, v: Vector3<f64>) -> Vector3<f64> {
+    if c.damping == 0.0 {
+        return Vector3::zeros();
+    }
+    let n = c.frame.row(0).transpose();
+    c.damping * sys.mass[c.vertex as usize] * n.dot(&(v - c.velocity)) * n
 }
 
 #[cfg(test)]
@@ -241,7 +337,7 @@ mod tests {
     /// One 1 kg vertex on a plane through the origin tilted θ about z, friction μ, gravity −y,
     /// h = 0.01 s for 1 s: (displacement along the slope, velocity along it, largest speed
     /// off the plane).
-    fn incline(theta_deg: f64, mu: f64) -> (f64, f64, f64) {
+    fn incline(theta_deg: f64, mu: f64, with_ghost: bool) -> (f64, f64, f64) {
         let th = theta_deg.to_radians();
         let n = Vector3::new(-th.sin(), th.cos(), 0.0);
         let t1 = Vector3::new(th.cos(), th.sin(), 0.0);
@@ -257,7 +353,21 @@ mod tests {
                 velocity: Vector3::zeros(),
                 friction: mu,
                 cohesion: 0.0,
+                damping: 0.0,
             };
+            // A second plane, tilted 35° towards the slope's downhill side and 1 mm away: it
+            // never touches, and must change nothing.
+            let ghost = {
+                let r =
+                    nalgebra::Rotation3::from_axis_angle(&Vector3::z_axis(), 35f64.to_radians());
+                let (n2, t12) = (r * n, r * t1);
+                VertexContact {
+                    frame: Matrix3::from_rows(&[n2.transpose(), t12.transpose(), t2.transpose()]),
+                    gap: 1e-3,
+                    ..c
+                }
+            };
+            let two = [c, ghost];
             let (_, cs) = integ
                 .step_contacts(
                     &sys,
@@ -266,8 +376,9 @@ mod tests {
                     0.01,
                     &settings,
                     ContactSet {
-                        contacts: &[c],
+                        contacts: if with_ghost { &two } else { &two[..1] },
                         max_admm: 200,
+                        warm: &[],
                     },
                 )
                 .unwrap();
@@ -282,14 +393,16 @@ mod tests {
     /// is exactly n h a, so within 1e-6 relative; it never leaves or enters the plane.
     #[test]
     fn a_vertex_on_an_incline_sticks_exactly_or_slides_by_coulomb() {
-        let (x, v, off) = incline(20.0, 0.5);
+        let (x, v, off) = incline(20.0, 0.5, false);
         assert!(
             x.abs() < 1e-9 && v.abs() < 1e-9 && off < 1e-9,
             "{x} {v} {off}"
         );
         let (th, mu) = (30f64.to_radians(), 0.3);
         let a = 9.81 * (th.sin() - mu * th.cos());
-        let (_, v, off) = incline(30.0, mu);
+        let (_, v, off) = incline(30.0, mu, false);
+        let (_, vg, _) = incline(30.0, mu, true);
+        assert!((vg / v - 1.0).abs() < 1e-9, "{vg} vs {v}");
         assert!(((-v) / a - 1.0).abs() < 1e-6, "{v} vs {a}");
         assert!(off < 1e-9, "{off}");
     }
@@ -311,6 +424,7 @@ mod tests {
                     velocity: Vector3::zeros(),
                     friction: 0.5,
                     cohesion: factor * 9.81 * h,
+                    damping: 0.0,
                 };
                 if c.gap > 1e-3 {
                     // Torn off: out of reach, no contact.
@@ -327,6 +441,7 @@ mod tests {
                         ContactSet {
                             contacts: &[c],
                             max_admm: 200,
+                            warm: &[],
                         },
                     )
                     .unwrap();
@@ -379,6 +494,7 @@ mod tests {
                     velocity: Vector3::zeros(),
                     friction: 0.3,
                     cohesion: 0.0,
+                    damping: 0.0,
                 })
                 .collect();
             integ
@@ -391,6 +507,7 @@ mod tests {
                     ContactSet {
                         contacts: &contacts,
                         max_admm: 500,
+                        warm: &[],
                     },
                 )
                 .unwrap();
