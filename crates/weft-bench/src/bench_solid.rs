@@ -44,6 +44,7 @@ fn run(scene: Vec<SceneElement>, frames: i64) -> Result<Measured, String> {
         substeps: 1,
         max_retries: 4,
         max_bytes: Some(weft_graph::memory::available()),
+        contact_iterations: 200,
         solver: Settings {
             tolerance: 1e-4,
             max_iterations: 200,

@@ -17,10 +17,12 @@ pub enum ElementKind {
     Hair,
     /// A data-less element standing for an attachment instance.
     Attachment,
-    /// A kinematic object (shown, later collided with; never simulated).
+    /// A kinematic object (shown, collided with, carved out of fluids; never simulated).
     Collider,
     /// The region a fluid fills (a data-less element carrying a Fluid Domain SEC).
     FluidDomain,
+    /// A data-less element carrying Collision Group and Collision Response SECs.
+    Collision,
 }
 
 impl ElementKind {
@@ -32,6 +34,7 @@ impl ElementKind {
             ElementKind::Attachment => "attachment",
             ElementKind::Collider => "collider",
             ElementKind::FluidDomain => "fluid_domain",
+            ElementKind::Collision => "collision",
         }
     }
 }

@@ -22,7 +22,7 @@ pub use geometry::{Curves, Geometry, Mesh, bounds};
 pub use obj::{ObjError, read_obj, write_obj_curves, write_obj_mesh};
 pub use preview::{Camera, Image, PreviewError, PreviewItem, auto_camera, render, write_png};
 pub use sec::{
-    Attachment, AttachmentMode, Density, DiscreteShell, DomainSide, Drag, Fluid, FluidDomain, Rod,
-    Sec, SecSet,
+    Attachment, AttachmentMode, Collider, CollisionGroup, CollisionResponse, Density,
+    DiscreteShell, DomainSide, Drag, Fluid, FluidDomain, Members, Rod, Sec, SecSet,
 };
 pub use usd::{UsdError, UsdaScene};

@@ -383,6 +383,113 @@ impl Attachment {
     }
 }
 
+/// Collider: how an element meets others in contact (cloth, hair and collider elements).
+///
+/// A contact between a simulated element and a collider combines both sides' SECs: the
+/// distance kept is the sum of their thicknesses, the friction coefficient the geometric mean
+/// √(μ₁μ₂) (a frictionless side makes a frictionless contact), the cohesion the larger of the
+/// two. A collider without the SEC takes the simulated element's friction and cohesion and
+/// adds no thickness; a simulated element without it uses the defaults below.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Collider {
+    /// Coulomb friction coefficient μ ≥ 0 (default 0.3, cotton on skin).
+    pub friction: f64,
+    /// Distance kept from the surface [m], > 0 (default 1e-3).
+    pub thickness: f64,
+    /// Cohesion [Pa]: the most a contact may pull, per m² of the vertex's contact area
+    /// (cloth: a third of its triangles' area; hair: its segments' length × diameter), ≥ 0
+    /// (default 0: nothing sticks).
+    pub cohesion: f64,
+}
+
+impl Default for Collider {
+    fn default() -> Self {
+        Collider {
+            friction: 0.3,
+            thickness: 1e-3,
+            cohesion: 0.0,
+        }
+    }
+}
+sec_impl!(Collider, "collider");
+
+/// Which elements a collision group names.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Members {
+    /// Every element of the right kind.
+    All,
+    /// These element names.
+    Names(Vec<String>),
+}
+
+impl Members {
+    /// Parses `"all"` or a comma-separated list of names (blanks around names ignored).
+    pub fn parse(s: &str) -> Members {
+        if s.trim() == "all" {
+            return Members::All;
+        }
+        Members::Names(
+            s.split(',')
+                .map(|n| n.trim().to_string())
+                .filter(|n| !n.is_empty())
+                .collect(),
+        )
+    }
+    /// True when `name` is a member.
+    pub fn contains(&self, name: &str) -> bool {
+        match self {
+            Members::All => true,
+            Members::Names(n) => n.iter().any(|m| m == name),
+        }
+    }
+}
+
+/// Collision Group: which simulated elements collide with which colliders, and how contacts
+/// are detected. Carried by a data-less collision element; several may coexist, each with its
+/// own members and methods.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CollisionGroup {
+    /// Simulated elements (cloth, hair) that collide (default all).
+    pub members: Members,
+    /// Collider elements they collide with (default all).
+    pub colliders: Members,
+    /// Vertex–face: every vertex of a member against the colliders' triangles (default on).
+    pub vertex_face: bool,
+}
+
+impl Default for CollisionGroup {
+    fn default() -> Self {
+        CollisionGroup {
+            members: Members::All,
+            colliders: Members::All,
+            vertex_face: true,
+        }
+    }
+}
+sec_impl!(CollisionGroup, "collision_group");
+
+/// Collision Response: how hard a collision group's contacts act.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CollisionResponse {
+    /// Fraction of an existing penetration resolved per step, in (0, 1] (default 0.5): a
+    /// start that is already inside a collider separates over a few steps instead of at
+    /// once.
+    pub strength: f64,
+    /// Damping of the normal relative velocity at a contact [1/s], ≥ 0 (default 0): a force
+    /// −c m (n·(v − v_collider)) n on each touching vertex.
+    pub damping: f64,
+}
+
+impl Default for CollisionResponse {
+    fn default() -> Self {
+        CollisionResponse {
+            strength: 0.5,
+            damping: 0.0,
+        }
+    }
+}
+sec_impl!(CollisionResponse, "collision_response");
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -30,9 +30,12 @@ pub struct Compiled {
     pub drag_elements: Vec<crate::DragElement>,
     /// The scene's fluid (None without a fluid-domain element: no grid is made).
     pub fluid: Option<crate::FluidSpec>,
+    /// Contacts with colliders (None without `behavior.collision` and a collision element:
+    /// no contact machinery is built).
+    pub collisions: Option<crate::CollisionSetup>,
 }
 
-fn lerp(a: Option<Transform>, b: Option<Transform>, s: f64) -> Option<Transform> {
+pub(crate) fn lerp(a: Option<Transform>, b: Option<Transform>, s: f64) -> Option<Transform> {
     match (a, b) {
         (Some(a), Some(b)) => Some(a.lerp_slerp(&b, s)),
         (a, b) => b.or(a),
@@ -217,6 +220,7 @@ pub fn compile_within(
         warnings: Vec::new(),
         read: vec![BTreeSet::new(); scene.len()],
         drag_elements: Vec::new(),
+        collisions: None,
     };
     for k in 0..b.ghosts.len() {
         let (a, vertex) = (b.ghosts[k].attachment, b.ghosts[k].vertex);
@@ -307,6 +311,10 @@ pub fn compile_within(
         ("cloth_clamp_ghosts", b.ghosts.len()),
         ("springs", el.springs.len()),
         ("drag_elements", b.drag_elements.len()),
+        (
+            "contact_pairs",
+            b.collisions.as_ref().map_or(0, |c| c.pairs.len()),
+        ),
         ("pinned", b.system.pinned.iter().filter(|p| **p).count()),
         ("vertices", n),
     ]);
@@ -320,5 +328,6 @@ pub fn compile_within(
         terms,
         drag_elements: b.drag_elements,
         fluid,
+        collisions: b.collisions,
     })
 }

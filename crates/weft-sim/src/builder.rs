@@ -47,6 +47,8 @@ pub struct SystemBuilder {
     pub(crate) read: Vec<BTreeSet<&'static str>>,
     /// Elements that exchange momentum with a fluid (filled by [`crate::FluidDrag`]).
     pub drag_elements: Vec<crate::DragElement>,
+    /// Contacts with colliders (made by [`crate::Collision`]; `None`: no contact machinery).
+    pub collisions: Option<crate::CollisionSetup>,
 }
 
 impl SystemBuilder {

@@ -15,6 +15,7 @@ mod behavior;
 mod build;
 mod builder;
 mod clamp;
+mod collide;
 mod coupled;
 mod error;
 pub mod estimate;
@@ -31,6 +32,7 @@ pub use build::{
     ClampPin, Compiled, Pin, SYSTEM_BYTES_PER_VERTEX, SystemBuilder, compile, compile_within,
 };
 pub use clamp::Ghost;
+pub use collide::{ColliderSetup, Collision, CollisionSetup, ContactPair, Detected, Detector};
 pub use coupled::{
     CoupledError, CoupledSettings, CoupledStepper, Coupling, DragElement, DragShape, Exchange,
     Predicted,
@@ -38,4 +40,4 @@ pub use coupled::{
 pub use error::SimError;
 pub use fluid::FluidSpec;
 pub use relaxation::{Relaxation, RelaxationMethod, fluid_change, relax, velocity_change};
-pub use stepper::{FrameStats, SimState, SolidStepper, StepperSettings};
+pub use stepper::{ContactFrameStats, FrameStats, SimState, SolidStepper, StepperSettings};

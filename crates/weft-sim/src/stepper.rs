@@ -7,11 +7,13 @@
 //! counted in the frame's statistics; if it still fails the error names the frame and substep.
 
 use crate::build::Compiled;
+use crate::collide::Detector;
 use crate::error::SimError;
 use nalgebra::Vector3;
 use std::sync::Arc;
 use std::time::Instant;
 use weft_scene::{SceneElement, Transform};
+use weft_solid::integrator::{ContactSet, VertexContact};
 use weft_solid::{Integrator, Settings, SolidSystem, State, StepError};
 
 /// How frames are stepped.
@@ -25,6 +27,8 @@ pub struct StepperSettings {
     pub max_retries: usize,
     /// The most the integrator's matrix and factor may take [bytes]; `None`: no limit.
     pub max_bytes: Option<u64>,
+    /// ADMM iterations allowed per Newton iteration in a step with contacts.
+    pub contact_iterations: usize,
 }
 
 impl Default for StepperSettings {
@@ -34,6 +38,7 @@ impl Default for StepperSettings {
             solver: Settings::default(),
             max_retries: 4,
             max_bytes: None,
+            contact_iterations: 200,
         }
     }
 }
@@ -69,6 +74,27 @@ pub struct FrameStats {
     pub solve_seconds: f64,
     /// Wall time of the frame.
     pub seconds: f64,
+    /// Contacts with colliders: `None` when the scene builds no contact machinery.
+    pub contacts: Option<ContactFrameStats>,
+}
+
+/// What contacts cost and did over a frame.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ContactFrameStats {
+    /// Most contacts in one step.
+    pub max_contacts: usize,
+    /// Contacts summed over steps.
+    pub contacts: usize,
+    /// ADMM iterations summed over steps (and their re-solves).
+    pub admm_iterations: usize,
+    /// Re-solves after the exact check found a path the contacts missed.
+    pub resolves: usize,
+    /// Largest penetration at the end of a step, measured by the exact check [m].
+    pub max_penetration: f64,
+    /// Largest distance from Coulomb's law at a step's end [m/s].
+    pub max_residual: f64,
+    /// Seconds finding contacts (detection and exact checks).
+    pub detection_seconds: f64,
 }
 
 /// Steps one compiled scene. Owns the integrator (pattern and factorization workspace) and a
@@ -80,6 +106,9 @@ pub struct SolidStepper {
     integrator: Integrator,
     settings: StepperSettings,
     targets: Vec<Vector3<f64>>,
+    /// Contact detection (None: the scene has no contact pairs).
+    detector: Option<Detector>,
+    contacts: Vec<VertexContact>,
 }
 
 impl SolidStepper {
@@ -103,6 +132,8 @@ impl SolidStepper {
             integrator,
             settings,
             targets,
+            detector: None,
+            contacts: Vec::new(),
         })
     }
 
@@ -143,13 +174,18 @@ impl SolidStepper {
         stats: &mut FrameStats,
     ) -> Result<(), StepError> {
         self.set_targets(from, to, s1);
-        match self.integrator.step(
-            &self.system,
-            st,
-            Some(&self.targets),
-            h,
-            &self.settings.solver,
-        ) {
+        let result = if self.detector.is_some() {
+            self.contact_step(st, (s0, s1, h), stats)
+        } else {
+            self.integrator.step(
+                &self.system,
+                st,
+                Some(&self.targets),
+                h,
+                &self.settings.solver,
+            )
+        };
+        match result {
             Ok(s) => {
                 stats.steps += 1;
                 stats.newton_iterations += s.iterations;
@@ -175,6 +211,79 @@ impl SolidStepper {
         }
     }
 
+    /// One step with contacts: detect, solve, check every path exactly, and solve again from
+    /// the start with the contacts the check added (at most `collide::MAX_ROUNDS` times).
+    fn contact_step(
+        &mut self,
+        st: &mut State,
+        (s0, s1, h): (f64, f64, f64),
+        stats: &mut FrameStats,
+    ) -> Result<weft_solid::StepStats, StepError> {
+        let setup = self
+            .compiled
+            .collisions
+            .as_ref()
+            .expect("a detector exists only with a collision setup");
+        let detector = self.detector.as_mut().expect("checked by the caller");
+        let cs = stats.contacts.get_or_insert_with(Default::default);
+        let t = Instant::now();
+        let c = &self.compiled;
+        detector.detect(
+            setup,
+            &c.ranges,
+            &self.system.pinned,
+            &st.x,
+            &st.v,
+            (s0, s1, h),
+            &mut self.contacts,
+        );
+        cs.detection_seconds += t.elapsed().as_secs_f64();
+        let tolerance = 1e-3
+            * setup
+                .pairs
+                .iter()
+                .fold(f64::INFINITY, |m, p| m.min(p.distance));
+        let mut round = 0;
+        loop {
+            let mut trial = st.clone();
+            let (step, contact) = self.integrator.step_contacts(
+                &self.system,
+                &mut trial,
+                Some(&self.targets),
+                h,
+                &self.settings.solver,
+                ContactSet {
+                    contacts: &self.contacts,
+                    max_admm: self.settings.contact_iterations,
+                    warm: &[],
+                },
+            )?;
+            cs.admm_iterations += contact.admm_iterations;
+            let t = Instant::now();
+            let (added, penetration) = detector.check(
+                setup,
+                &c.ranges,
+                &self.system.pinned,
+                &st.x,
+                &trial.x,
+                (s0, s1, h),
+                tolerance,
+                &mut self.contacts,
+            );
+            cs.detection_seconds += t.elapsed().as_secs_f64();
+            round += 1;
+            if added == 0 || round == crate::collide::MAX_ROUNDS {
+                cs.max_contacts = cs.max_contacts.max(self.contacts.len());
+                cs.contacts += self.contacts.len();
+                cs.max_penetration = cs.max_penetration.max(penetration);
+                cs.max_residual = cs.max_residual.max(contact.max_residual);
+                *st = trial;
+                return Ok(step);
+            }
+            cs.resolves += 1;
+        }
+    }
+
     /// State at `frame` from the state at the previous frame; `scene` is the scene at `frame`
     /// (its attachment transforms are this frame's targets).
     pub fn advance(
@@ -191,6 +300,13 @@ impl SolidStepper {
         let h = frame_dt / n as f64;
         let mut st = prev.solid.clone();
         let mut stats = FrameStats::default();
+        if let Some(setup) = &self.compiled.collisions {
+            let d = self
+                .detector
+                .get_or_insert_with(|| Detector::new(setup, scene));
+            d.frame(setup, scene, &prev.transforms, &to)?;
+            stats.contacts = Some(ContactFrameStats::default());
+        }
         for k in 0..n {
             let (s0, s1) = (k as f64 / n as f64, (k + 1) as f64 / n as f64);
             let retries_before = stats.retries;

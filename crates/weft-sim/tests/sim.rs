@@ -417,6 +417,7 @@ fn a_step_that_cannot_converge_is_retried_then_reported_with_frame_and_substep()
         substeps: 2,
         max_retries: 2,
         max_bytes: None,
+        contact_iterations: 200,
         solver: Settings {
             tolerance: 0.0,
             max_iterations: 2,

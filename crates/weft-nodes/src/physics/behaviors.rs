@@ -4,8 +4,8 @@ use super::types::BehaviorValue;
 use std::sync::Arc;
 use weft_graph::{Kernel, NodeSpec, ParamSpec, Registry, RegistryError, Value};
 use weft_sim::{
-    AttachmentBehavior, Behavior, BehaviorTree, Damping, DiscreteShellMaterial, FluidDrag, Gravity,
-    Load, LoadVertices, RodMaterial,
+    AttachmentBehavior, Behavior, BehaviorTree, Collision, Damping, DiscreteShellMaterial,
+    FluidDrag, Gravity, Load, LoadVertices, RodMaterial,
 };
 
 fn plain(
@@ -49,6 +49,12 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         "behavior.fluid_drag",
         "fluid drag: every hair segment and cloth triangle exchanges momentum with the scene's fluid (drag, lift, buoyancy), from its Drag SEC or the defaults; needs solver.coupled and a fluid domain",
         || Arc::new(FluidDrag),
+    )?;
+    plain(
+        r,
+        "behavior.collision",
+        "contacts with colliders: every collision element's member cloth and hair stay outside its colliders, with exact Coulomb friction and cohesion inside the implicit step (Daviet 2020), from the Collision Group, Collision Response and Collider SECs or their defaults",
+        || Arc::new(Collision),
     )?;
     r.register(
         NodeSpec::new(

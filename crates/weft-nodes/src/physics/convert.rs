@@ -5,8 +5,8 @@ use weft_graph::{
     EvalCx, Kernel, NodeError, NodeSpec, ParamSpec, Params, Registry, RegistryError, Value,
 };
 use weft_scene::{
-    Attachment, AttachmentMode, Channel, Curves, DomainSide, ElementKind, FluidDomain, Geometry,
-    Mesh, SceneElement, Transform,
+    Attachment, AttachmentMode, Channel, CollisionGroup, CollisionResponse, Curves, DomainSide,
+    ElementKind, FluidDomain, Geometry, Members, Mesh, SceneElement, Transform,
 };
 
 fn check_name(p: &Params) -> Result<(), String> {
@@ -168,6 +168,41 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                 }
                 let mut e = SceneElement::new(cx.params().str("name")?, ElementKind::Collider, Geometry::Mesh(m));
                 e.transform = t;
+                cx.set("element", Value::new(e));
+                Ok(())
+            }))
+        },
+    )?;
+    r.register(
+        NodeSpec::new("convert.collision_group", "a collision element: which cloth and hair elements collide with which colliders and how (a Collision Group SEC and a Collision Response SEC on a data-less element; several may coexist); needs behavior.collision in the solver's tree")
+            .output("element", "element", "a data-less collision element")
+            .param(ParamSpec::string("name", "collision").doc("element name, unique in the scene"))
+            .param(ParamSpec::string("members", "all").doc("the cloth and hair elements that collide: all, or names separated by commas"))
+            .param(ParamSpec::string("colliders", "all").doc("the collider elements they collide with: all, or names separated by commas"))
+            .param(ParamSpec::bool("vertex_face", true).doc("detect every member vertex against the colliders' triangles"))
+            .param(ParamSpec::float("strength", CollisionResponse::default().strength).gt(0.0).le(1.0).doc("fraction of an existing penetration resolved per step (a start inside a collider separates over steps)"))
+            .param(ParamSpec::float("damping", CollisionResponse::default().damping).ge(0.0).unit("1/s").doc("damping of the normal relative velocity at a contact")),
+        |p| {
+            check_name(p)?;
+            for field in ["members", "colliders"] {
+                if let Members::Names(n) = Members::parse(p.str(field)?)
+                    && n.is_empty()
+                {
+                    return Err(format!("param '{field}': names no element (use all, or names separated by commas)"));
+                }
+            }
+            Ok(Kernel::from_fn(|cx| {
+                let p = cx.params();
+                let mut e = SceneElement::new(p.str("name")?, ElementKind::Collision, Geometry::None);
+                e.secs.insert(CollisionGroup {
+                    members: Members::parse(p.str("members")?),
+                    colliders: Members::parse(p.str("colliders")?),
+                    vertex_face: p.bool("vertex_face")?,
+                });
+                e.secs.insert(CollisionResponse {
+                    strength: p.f64("strength")?,
+                    damping: p.f64("damping")?,
+                });
                 cx.set("element", Value::new(e));
                 Ok(())
             }))

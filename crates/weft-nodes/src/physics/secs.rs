@@ -3,7 +3,7 @@
 //! node and parameter. Defaults are the SEC types' documented defaults.
 
 use weft_graph::{Kernel, NodeSpec, ParamError, ParamSpec, Params, Registry, RegistryError, Value};
-use weft_scene::{Density, DiscreteShell, Drag, Fluid, Rod, SceneElement, Sec};
+use weft_scene::{Collider, Density, DiscreteShell, Drag, Fluid, Rod, SceneElement, Sec};
 
 fn attach<S: Sec + Clone>(
     name: &str,
@@ -193,6 +193,32 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                 diameter: p.f64("diameter")?,
                 gamma: p.f64("gamma")?,
                 degree: p.f64("degree")?,
+            })
+        },
+        r,
+    )?;
+    let d = Collider::default();
+    attach(
+        "sec.collider",
+        "Collider SEC: how a cloth, hair or collider element meets others in contact (with behavior.collision and a collision group); a contact keeps the sum of both sides' thicknesses, uses the geometric mean of their friction coefficients and the larger cohesion; a collider without it takes the other side's friction and cohesion",
+        vec![
+            ParamSpec::float("friction", d.friction)
+                .ge(0.0)
+                .doc("Coulomb friction coefficient μ"),
+            ParamSpec::float("thickness", d.thickness)
+                .gt(0.0)
+                .unit("m")
+                .doc("distance kept from the surface"),
+            ParamSpec::float("cohesion", d.cohesion)
+                .ge(0.0)
+                .unit("Pa")
+                .doc("the most a contact may pull per m² of contact area (cloth: a third of a vertex's triangles; hair: its segments' length × diameter)"),
+        ],
+        |p| {
+            Ok(Collider {
+                friction: p.f64("friction")?,
+                thickness: p.f64("thickness")?,
+                cohesion: p.f64("cohesion")?,
             })
         },
         r,

@@ -47,6 +47,7 @@ fn settings(p: &Params, max_bytes: u64) -> Result<StepperSettings, weft_graph::P
         substeps: p.usize("substeps")?.max(1),
         max_retries: p.usize("max_retries")?,
         max_bytes: Some(max_bytes),
+        contact_iterations: p.usize("contact_iterations")?.max(1),
         solver: Settings {
             method,
             tolerance: p.f64("tolerance")?,
@@ -218,12 +219,16 @@ impl Step for SolidSolver {
             .frames
             .iter()
             .map(|(f, s)| {
-                serde_json::json!({
+                let mut j = serde_json::json!({
                     "frame": f, "steps": s.steps, "retries": s.retries, "newton_iterations": s.newton_iterations,
                     "max_newton_iterations": s.max_newton_iterations, "max_residual": s.max_residual,
                     "assembly_seconds": s.assembly_seconds, "factor_seconds": s.factor_seconds,
                     "solve_seconds": s.solve_seconds, "seconds": s.seconds,
-                })
+                });
+                if let Some(c) = &s.contacts {
+                    j["contacts"] = super::types::contact_stats_json(c);
+                }
+                j
             })
             .collect();
         let c = self.compiled.as_ref();
@@ -248,7 +253,8 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             .param(ParamSpec::choice("method", &["newton", "linearized", "explicit", "static"], "newton").doc("newton: implicit Euler to tolerance; linearized: one Newton step; explicit: symplectic Euler; static: no inertia, each step finds the equilibrium under that step's loads and attachment targets (substeps load the structure gradually)"))
             .param(ParamSpec::float("tolerance", 1e-6).gt(0.0).unit("m/s").doc("Newton stops when a further iteration would change velocities by less (method static: positions, in m)"))
             .param(ParamSpec::int("max_iterations", 50).ge(1.0).le(10_000.0).doc("Newton iteration limit per step"))
-            .param(ParamSpec::int("max_retries", 4).ge(0.0).le(16.0).doc("levels of step halving when a step fails")),
+            .param(ParamSpec::int("max_retries", 4).ge(0.0).le(16.0).doc("levels of step halving when a step fails"))
+            .param(ParamSpec::int("contact_iterations", 200).ge(1.0).le(100_000.0).doc("ADMM iterations allowed per Newton iteration in a step with contacts (behavior.collision)")),
         |_| Ok(Kernel::Step(Box::new(SolidSolver { stepper: None, frames: VecDeque::new(), compiled: None, interrupt: None, totals: [0; 2] }))),
     )
 }

@@ -97,3 +97,16 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         },
     ))
 }
+
+/// A frame's contact statistics as the solvers report them (`--stats`).
+pub(crate) fn contact_stats_json(c: &weft_sim::ContactFrameStats) -> serde_json::Value {
+    serde_json::json!({
+        "max_contacts": c.max_contacts,
+        "contacts": c.contacts,
+        "admm_iterations": c.admm_iterations,
+        "resolves": c.resolves,
+        "max_penetration": c.max_penetration,
+        "max_residual": c.max_residual,
+        "detection_seconds": c.detection_seconds,
+    })
+}

@@ -1,0 +1,49 @@
+//! The one place where parry3d-f64's glam types meet Weft's nalgebra: a bounding-volume
+//! hierarchy over a collider's triangles, in the collider's own frame.
+
+use nalgebra::Vector3;
+use parry3d_f64::bounding_volume::Aabb;
+use parry3d_f64::math::Vector as GVec;
+use parry3d_f64::partitioning::{Bvh, BvhBuildStrategy, BvhWorkspace};
+
+fn g(v: &Vector3<f64>) -> GVec {
+    GVec::new(v.x, v.y, v.z)
+}
+
+fn triangle_box(p: &[Vector3<f64>], t: &[u32; 3]) -> Aabb {
+    let (a, b, c) = (p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]);
+    Aabb::new(g(&a.inf(&b).inf(&c)), g(&a.sup(&b).sup(&c)))
+}
+
+/// Triangles by their bounds; leaf k is triangle k.
+pub(crate) struct TriangleTree {
+    bvh: Bvh,
+    workspace: BvhWorkspace,
+}
+
+impl TriangleTree {
+    /// A tree over `triangles` of the points `p` (every index in range).
+    pub(crate) fn new(p: &[Vector3<f64>], triangles: &[[u32; 3]]) -> Self {
+        let leaves: Vec<Aabb> = triangles.iter().map(|t| triangle_box(p, t)).collect();
+        TriangleTree {
+            bvh: Bvh::from_leaves(BvhBuildStrategy::Binned, &leaves),
+            workspace: BvhWorkspace::default(),
+        }
+    }
+
+    /// Moves the leaves to the triangles' bounds at the points `p` and refits the tree (its
+    /// structure is kept: a deforming collider is not rebuilt each frame).
+    pub(crate) fn refit(&mut self, p: &[Vector3<f64>], triangles: &[[u32; 3]]) {
+        for (k, t) in triangles.iter().enumerate() {
+            self.bvh
+                .insert_or_update_partially(triangle_box(p, t), k as u32, 0.0);
+        }
+        self.bvh.refit(&mut self.workspace);
+    }
+
+    /// Appends to `out` the triangles whose bounds meet the box `lo..hi`.
+    pub(crate) fn query(&self, lo: &Vector3<f64>, hi: &Vector3<f64>, out: &mut Vec<u32>) {
+        let aabb = Aabb::new(g(lo), g(hi));
+        out.extend(self.bvh.intersect_aabb(&aabb));
+    }
+}

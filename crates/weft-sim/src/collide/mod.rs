@@ -1,0 +1,737 @@
+//! Contacts with kinematic colliders: collision groups compiled from the scene, and the
+//! detection that hands `weft_solid`'s contact step its contacts (issue 13; the plan and the
+//! derivations are in `docs/contacts.md`).
+//!
+//! **Setup** ([`Collision`], the `behavior.collision` Behavior): every data-less collision
+//! element (a Collision Group SEC and a Collision Response SEC) pairs its member cloth and hair
+//! elements with its colliders; each pair gets its contact parameters from both sides' Collider
+//! SECs. A scene without collision elements builds nothing.
+//!
+//! **Detection** ([`Detector`]), once per step and per collider, in the collider's own frame
+//! (its mesh at the frame, placed by its transform interpolated over the frame as attachments
+//! are): a rigidly moving collider's tree never changes, and a deforming one's is refit, not
+//! rebuilt, when its shape changes. A vertex within reach of a triangle (the distance kept
+//! plus its predicted travel) gets a contact whose plane separates it from that triangle:
+//! normal from the closest point, the constraint n·(x_end − q_end) ≥ thickness on the end of
+//! step. The triangle is convex, so a vertex that starts and ends on the plane's side never
+//! crossed it. After the step, an exact check of every vertex's path against the triangles
+//! near it adds a contact for any triangle the path crossed or ended too close to, and the
+//! step is solved again (CCD by growing the active set: a vertex falling at 10 m/s onto a
+//! thin plane is stopped whatever the step).
+
+mod bvh;
+pub(crate) mod geometry;
+
+use crate::builder::SystemBuilder;
+use crate::error::SimError;
+use bvh::TriangleTree;
+use geometry::{closest_on_triangle, frame, segment_crosses_triangle};
+use nalgebra::Vector3;
+use std::collections::{BTreeMap, BTreeSet};
+use std::ops::Range;
+use weft_scene::{
+    Collider, CollisionGroup, CollisionResponse, ElementKind, Geometry, Members, Rod, SceneElement,
+    Transform,
+};
+use weft_solid::integrator::VertexContact;
+
+type V = Vector3<f64>;
+
+/// A collider element as compiled: its triangles and whether its mesh is closed.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ColliderSetup {
+    /// Scene index of the collider element.
+    pub element: usize,
+    /// Its triangles.
+    pub triangles: Vec<[u32; 3]>,
+    /// Every edge in exactly two triangles, oppositely oriented: inside and outside are
+    /// defined, so a vertex found inside is pushed out through the nearest face. Otherwise
+    /// only distance is (a vertex is kept on the side it comes from).
+    pub closed: bool,
+}
+
+/// One simulated element against one collider, with the contact parameters of the pair.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ContactPair {
+    /// Scene index of the simulated (cloth or hair) element.
+    pub element: usize,
+    /// Index into [`CollisionSetup::colliders`].
+    pub collider: usize,
+    /// Scene index of the collision element that made the pair.
+    pub group: usize,
+    /// Friction coefficient μ of the contact.
+    pub friction: f64,
+    /// Distance kept between the vertex and the collider's surface [m].
+    pub distance: f64,
+    /// Cohesion [Pa].
+    pub cohesion: f64,
+    /// Fraction of an existing penetration resolved per step.
+    pub strength: f64,
+    /// Damping of the normal relative velocity [1/s].
+    pub damping: f64,
+}
+
+/// Every collider and contact pair of a scene, and each simulated vertex's contact area.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CollisionSetup {
+    /// The colliders that some pair uses.
+    pub colliders: Vec<ColliderSetup>,
+    /// The pairs, by collision element, then member, then collider.
+    pub pairs: Vec<ContactPair>,
+    /// Contact area of each global vertex [m²] (cloth: a third of its triangles' areas; hair:
+    /// half its segments' lengths × the fibre's diameter).
+    pub areas: Vec<f64>,
+}
+
+fn bad(element: &str, field: &str, message: String) -> SimError {
+    SimError::BadParameter {
+        element: element.into(),
+        field: field.into(),
+        message,
+    }
+}
+
+fn check_collider_sec(name: &str, c: &Collider) -> Result<(), SimError> {
+    if !(c.friction >= 0.0 && c.friction.is_finite()) {
+        return Err(bad(
+            name,
+            "collider.friction",
+            format!("must be >= 0, got {}", c.friction),
+        ));
+    }
+    if !(c.thickness > 0.0 && c.thickness.is_finite()) {
+        return Err(bad(
+            name,
+            "collider.thickness",
+            format!("must be > 0, got {}", c.thickness),
+        ));
+    }
+    if !(c.cohesion >= 0.0 && c.cohesion.is_finite()) {
+        return Err(bad(
+            name,
+            "collider.cohesion",
+            format!("must be >= 0, got {}", c.cohesion),
+        ));
+    }
+    Ok(())
+}
+
+/// Closed: every undirected edge in exactly two triangles, once in each direction.
+fn is_closed(triangles: &[[u32; 3]]) -> bool {
+    let mut directed: BTreeMap<(u32, u32), u32> = BTreeMap::new();
+    for t in triangles {
+        for k in 0..3 {
+            *directed.entry((t[k], t[(k + 1) % 3])).or_default() += 1;
+        }
+    }
+    directed
+        .iter()
+        .all(|(&(a, b), &n)| n == 1 && directed.get(&(b, a)) == Some(&1))
+}
+
+/// Contacts with colliders: pairs every collision element's member cloth and hair elements
+/// with its colliders (Collision Group SEC), with the response of its Collision Response SEC
+/// and both sides' Collider SECs (or their defaults). Without collision elements it builds
+/// nothing (and says so).
+#[derive(Clone, Debug, Default)]
+pub struct Collision;
+
+impl crate::Behavior for Collision {
+    fn name(&self) -> &'static str {
+        "collision"
+    }
+    fn reads(&self) -> &'static [&'static str] {
+        &["collision_group", "collision_response", "collider"]
+    }
+    fn apply(&self, scene: &[SceneElement], b: &mut SystemBuilder) -> Result<(), SimError> {
+        let groups: Vec<usize> = (0..scene.len())
+            .filter(|&i| scene[i].kind == ElementKind::Collision)
+            .collect();
+        if groups.is_empty() {
+            b.warn("behavior.collision is in the tree but the scene has no collision element (convert.collision_group): nothing collides".into());
+            return Ok(());
+        }
+        let simulated = |e: &SceneElement| matches!(e.kind, ElementKind::Cloth | ElementKind::Hair);
+        let mut setup = CollisionSetup::default();
+        let mut collider_index: BTreeMap<usize, usize> = BTreeMap::new();
+        for &gi in &groups {
+            let g = &scene[gi];
+            b.read(gi, "collision_group");
+            b.read(gi, "collision_response");
+            let group = g.secs.get::<CollisionGroup>().cloned().unwrap_or_default();
+            let response = g
+                .secs
+                .get::<CollisionResponse>()
+                .cloned()
+                .unwrap_or_default();
+            if !(response.strength > 0.0 && response.strength <= 1.0) {
+                return Err(bad(
+                    &g.name,
+                    "collision_response.strength",
+                    format!("must be in (0, 1], got {}", response.strength),
+                ));
+            }
+            if !(response.damping >= 0.0 && response.damping.is_finite()) {
+                return Err(bad(
+                    &g.name,
+                    "collision_response.damping",
+                    format!("must be >= 0, got {}", response.damping),
+                ));
+            }
+            for (field, members, want) in [
+                ("collision_group.members", &group.members, "a cloth or hair"),
+                ("collision_group.colliders", &group.colliders, "a collider"),
+            ] {
+                if let Members::Names(names) = members {
+                    for n in names {
+                        let Some(e) = scene.iter().find(|e| &e.name == n) else {
+                            let known: Vec<&str> = scene.iter().map(|e| e.name.as_str()).collect();
+                            return Err(bad(
+                                &g.name,
+                                field,
+                                format!("'{n}' is not an element of the scene (it has {known:?})"),
+                            ));
+                        };
+                        let ok = if want == "a collider" {
+                            e.kind == ElementKind::Collider
+                        } else {
+                            simulated(e)
+                        };
+                        if !ok {
+                            return Err(bad(
+                                &g.name,
+                                field,
+                                format!("'{n}' is a {} element, not {want} element", e.kind.name()),
+                            ));
+                        }
+                    }
+                }
+            }
+            if !group.vertex_face {
+                b.warn(format!(
+                    "collision element '{}' has no detection method on: it makes no contacts",
+                    g.name
+                ));
+                continue;
+            }
+            let members: Vec<usize> = (0..scene.len())
+                .filter(|&i| simulated(&scene[i]) && group.members.contains(&scene[i].name))
+                .collect();
+            let colliders: Vec<usize> = (0..scene.len())
+                .filter(|&i| {
+                    scene[i].kind == ElementKind::Collider
+                        && group.colliders.contains(&scene[i].name)
+                })
+                .collect();
+            if members.is_empty() || colliders.is_empty() {
+                b.warn(format!(
+                    "collision element '{}' has {} member(s) and {} collider(s): it makes no contacts",
+                    g.name,
+                    members.len(),
+                    colliders.len()
+                ));
+            }
+            for &m in &members {
+                b.read(m, "collider");
+                let ms = scene[m].secs.get::<Collider>().cloned().unwrap_or_default();
+                check_collider_sec(&scene[m].name, &ms)?;
+                for &c in &colliders {
+                    b.read(c, "collider");
+                    let k = match collider_index.get(&c) {
+                        Some(&k) => k,
+                        None => {
+                            let k = setup.colliders.len();
+                            setup.colliders.push(collider_setup(&scene[c], c, b)?);
+                            collider_index.insert(c, k);
+                            k
+                        }
+                    };
+                    let (friction, distance, cohesion) = match scene[c].secs.get::<Collider>() {
+                        Some(cs) => {
+                            check_collider_sec(&scene[c].name, cs)?;
+                            (
+                                (ms.friction * cs.friction).sqrt(),
+                                ms.thickness + cs.thickness,
+                                ms.cohesion.max(cs.cohesion),
+                            )
+                        }
+                        None => (ms.friction, ms.thickness, ms.cohesion),
+                    };
+                    setup.pairs.push(ContactPair {
+                        element: m,
+                        collider: k,
+                        group: gi,
+                        friction,
+                        distance,
+                        cohesion,
+                        strength: response.strength,
+                        damping: response.damping,
+                    });
+                }
+            }
+        }
+        setup.areas = contact_areas(scene, b)?;
+        b.collisions = Some(setup);
+        Ok(())
+    }
+}
+
+fn collider_setup(
+    e: &SceneElement,
+    element: usize,
+    b: &mut SystemBuilder,
+) -> Result<ColliderSetup, SimError> {
+    let Geometry::Mesh(m) = &*e.geometry else {
+        return Err(SimError::BadGeometry {
+            element: e.name.clone(),
+            message: "a collider needs a triangle mesh".into(),
+        });
+    };
+    if m.triangles.is_empty() {
+        return Err(SimError::BadGeometry {
+            element: e.name.clone(),
+            message: "the collider has no triangles: there is nothing to collide with".into(),
+        });
+    }
+    let n = m.positions.len() as u32;
+    if let Some((ti, t)) = m
+        .triangles
+        .iter()
+        .enumerate()
+        .find(|(_, t)| t.iter().any(|&v| v >= n))
+    {
+        return Err(SimError::BadGeometry {
+            element: e.name.clone(),
+            message: format!("triangle {ti} {t:?} uses a vertex beyond the {n} the mesh has"),
+        });
+    }
+    if let Some(i) = m
+        .positions
+        .iter()
+        .position(|p| !p.iter().all(|c| c.is_finite()))
+    {
+        return Err(SimError::BadGeometry {
+            element: e.name.clone(),
+            message: format!("vertex {i} has a non-finite position {:?}", m.positions[i]),
+        });
+    }
+    let closed = is_closed(&m.triangles);
+    let mut triangles = m.triangles.clone();
+    if closed {
+        // Inside is behind the faces: orient them outwards (positive enclosed volume).
+        let p = |v: u32| V::from(m.positions[v as usize]);
+        let volume: f64 = triangles
+            .iter()
+            .map(|t| p(t[0]).dot(&p(t[1]).cross(&p(t[2]))))
+            .sum();
+        if volume < 0.0 {
+            for t in &mut triangles {
+                t.swap(1, 2);
+            }
+        }
+    }
+    if !closed {
+        b.warn(format!(
+            "collider '{}' is not a closed, consistently oriented mesh: its inside is not defined, so contacts keep each vertex on the side it comes from (only distance is used)",
+            e.name
+        ));
+    }
+    Ok(ColliderSetup {
+        element,
+        triangles,
+        closed,
+    })
+}
+
+fn contact_areas(scene: &[SceneElement], b: &SystemBuilder) -> Result<Vec<f64>, SimError> {
+    let mut areas = vec![0.0; b.x.len()];
+    for (ei, e) in scene.iter().enumerate() {
+        let Some(r) = b.ranges.get(ei).cloned().flatten() else {
+            continue;
+        };
+        let p = |i: u32| b.x[r.start + i as usize];
+        match &*e.geometry {
+            Geometry::Mesh(m) => {
+                for t in &m.triangles {
+                    if t.iter().any(|&v| v as usize >= r.len()) {
+                        continue; // the material Behavior reports it
+                    }
+                    let a = 0.5 * (p(t[1]) - p(t[0])).cross(&(p(t[2]) - p(t[0]))).norm();
+                    for &v in t {
+                        areas[r.start + v as usize] += a / 3.0;
+                    }
+                }
+            }
+            Geometry::Curves(c) => {
+                let d = 2.0 * e.secs.get::<Rod>().cloned().unwrap_or_default().radius;
+                for k in 0..c.len() {
+                    let cr = c.range(k);
+                    for v in cr.start..cr.end.saturating_sub(1) {
+                        let l = (p(v as u32 + 1) - p(v as u32)).norm();
+                        areas[r.start + v] += 0.5 * l * d;
+                        areas[r.start + v + 1] += 0.5 * l * d;
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(areas)
+}
+
+/// A collider during a frame: its mesh in its own frame and the tree over it.
+struct Live {
+    local: Vec<V>,
+    tree: TriangleTree,
+    from: Option<Transform>,
+    to: Option<Transform>,
+}
+
+impl Live {
+    fn at(&self, s: f64) -> Option<Transform> {
+        crate::build::lerp(self.from, self.to, s)
+    }
+}
+
+/// Where a contact came from: (vertex, collider, triangle).
+type Key = (u32, u32, u32);
+
+/// What detection found over a step.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Detected {
+    /// Solves of the step (1 + the rounds that added contacts after an exact check).
+    pub solves: usize,
+    /// The largest penetration at the end of the step, measured by the exact check [m]
+    /// (how far some vertex is inside the distance it should keep; 0: none).
+    pub max_penetration: f64,
+}
+
+/// Finds contacts each step (see the module doc). Holds no simulation state: the colliders'
+/// shapes and transforms come from the scene each frame.
+pub struct Detector {
+    live: Vec<Live>,
+    candidates: Vec<u32>,
+    keys: BTreeSet<Key>,
+}
+
+/// Rounds of exact checking allowed per step before the step is accepted as it is (and its
+/// penetration reported).
+pub(crate) const MAX_ROUNDS: usize = 4;
+
+fn local_positions(e: &SceneElement, to: Option<Transform>) -> Vec<V> {
+    e.geometry
+        .positions()
+        .iter()
+        .map(|p| {
+            let w = V::new(p[0], p[1], p[2]);
+            match to {
+                Some(t) => t.inverse_transform_point(&w.into()).coords,
+                None => w,
+            }
+        })
+        .collect()
+}
+
+impl Detector {
+    /// A detector for `setup`'s colliders as they are in `scene`.
+    pub fn new(setup: &CollisionSetup, scene: &[SceneElement]) -> Self {
+        let live = setup
+            .colliders
+            .iter()
+            .map(|c| {
+                let e = &scene[c.element];
+                let local = local_positions(e, e.transform);
+                let tree = TriangleTree::new(&local, &c.triangles);
+                Live {
+                    local,
+                    tree,
+                    from: e.transform,
+                    to: e.transform,
+                }
+            })
+            .collect();
+        Detector {
+            live,
+            candidates: Vec::new(),
+            keys: BTreeSet::new(),
+        }
+    }
+
+    /// Before stepping a frame: each collider's transforms at the frame's start and end and
+    /// its shape at the end (the tree is refit when the shape changed).
+    pub fn frame(
+        &mut self,
+        setup: &CollisionSetup,
+        scene: &[SceneElement],
+        from: &[Option<Transform>],
+        to: &[Option<Transform>],
+    ) -> Result<(), SimError> {
+        for (c, live) in setup.colliders.iter().zip(&mut self.live) {
+            let e = &scene[c.element];
+            live.from = from.get(c.element).copied().flatten();
+            live.to = to.get(c.element).copied().flatten();
+            if e.vertex_count() != live.local.len() {
+                return Err(SimError::SceneChanged(format!(
+                    "collider '{}' has {} vertices but had {} at the start",
+                    e.name,
+                    e.vertex_count(),
+                    live.local.len()
+                )));
+            }
+            let local = local_positions(e, live.to);
+            if local != live.local {
+                if let Some(i) = local.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+                    return Err(SimError::BadGeometry {
+                        element: e.name.clone(),
+                        message: format!("vertex {i} has a non-finite position"),
+                    });
+                }
+                live.local = local;
+                live.tree.refit(&live.local, &c.triangles);
+            }
+        }
+        Ok(())
+    }
+
+    /// The contacts for a step of `h` from `x0`, `v0` between fractions `s0` and `s1` of the
+    /// frame, replacing `out`. `pinned`: vertices that do not move (no contacts).
+    #[allow(clippy::too_many_arguments)]
+    pub fn detect(
+        &mut self,
+        setup: &CollisionSetup,
+        ranges: &[Option<Range<usize>>],
+        pinned: &[bool],
+        x0: &[V],
+        v0: &[V],
+        (s0, s1, h): (f64, f64, f64),
+        out: &mut Vec<VertexContact>,
+    ) {
+        out.clear();
+        self.keys.clear();
+        let (candidates, keys) = (&mut self.candidates, &mut self.keys);
+        let ends = |i: usize| x0[i] + h * v0[i];
+        each_vertex(
+            setup,
+            ranges,
+            pinned,
+            &self.live,
+            x0,
+            ends,
+            (s0, s1),
+            |at| {
+                let (pair, c, live, i, a, b) =
+                    (at.pair, at.collider, at.live, at.vertex, at.a, at.b);
+                let reach = 1.25 * pair.distance + (b - a).norm();
+                let pad = V::repeat(reach);
+                candidates.clear();
+                live.tree.query(&(a - pad), &(a + pad), candidates);
+                // The closest triangle within reach (ties: the lower index), only: a neighbour's
+                // edge near the vertex would make a tilted plane through that edge (measured: a
+                // patch sliding across a coplanar pair of triangles lost 40 % of a frame's
+                // acceleration to them); the exact check adds the triangles a path really meets
+                // (a concave corner's second face) instead.
+                let mut best: Option<(f64, u32, [f64; 3])> = None;
+                for &t in candidates.iter() {
+                    let tri = c.triangles[t as usize].map(|v| live.local[v as usize]);
+                    let w = closest_on_triangle(&a, &tri[0], &tri[1], &tri[2]);
+                    let d = (a - (w[0] * tri[0] + w[1] * tri[1] + w[2] * tri[2])).norm();
+                    if d <= reach && best.is_none_or(|(bd, bt, _)| (d, t) < (bd, bt)) {
+                        best = Some((d, t, w));
+                    }
+                }
+                if let Some((_, t, w)) = best {
+                    keys.insert((i as u32, pair.collider as u32, t));
+                    out.push(contact(setup, &at, t, w, x0, h));
+                }
+            },
+        );
+    }
+
+    /// The exact check after a step from `x0` to `x1`: every vertex's path (in each
+    /// collider's frame) against the triangles near it. A triangle the path crossed, or that
+    /// the end is closer to than the distance kept (less `tolerance`), and that has no contact
+    /// with the vertex yet, gets one (appended to `contacts`). Returns how many were added and
+    /// the largest penetration at the end [m].
+    #[allow(clippy::too_many_arguments)]
+    pub fn check(
+        &mut self,
+        setup: &CollisionSetup,
+        ranges: &[Option<Range<usize>>],
+        pinned: &[bool],
+        x0: &[V],
+        x1: &[V],
+        (s0, s1, h): (f64, f64, f64),
+        tolerance: f64,
+        contacts: &mut Vec<VertexContact>,
+    ) -> (usize, f64) {
+        let mut added = 0;
+        let mut deepest = 0.0f64;
+        let (candidates, keys) = (&mut self.candidates, &mut self.keys);
+        each_vertex(
+            setup,
+            ranges,
+            pinned,
+            &self.live,
+            x0,
+            |i| x1[i],
+            (s0, s1),
+            |at| {
+                let (pair, c, live, i, a, b) =
+                    (at.pair, at.collider, at.live, at.vertex, at.a, at.b);
+                let pad = V::repeat(pair.distance);
+                candidates.clear();
+                live.tree
+                    .query(&(a.inf(&b) - pad), &(a.sup(&b) + pad), candidates);
+                candidates.sort_unstable();
+                for &t in candidates.iter() {
+                    let tri = c.triangles[t as usize].map(|v| live.local[v as usize]);
+                    let wb = closest_on_triangle(&b, &tri[0], &tri[1], &tri[2]);
+                    let (_, signed) = side(c, live, t, &wb, &b, &b);
+                    let clearance = signed - pair.distance;
+                    if !keys.insert((i as u32, pair.collider as u32, t)) {
+                        // Its contact holds it (to the solver's tolerance): measure only.
+                        deepest = deepest.max(-clearance);
+                        continue;
+                    }
+                    let crossed = segment_crosses_triangle(&a, &b, &tri[0], &tri[1], &tri[2])
+                        && (!c.closed || face_normal(&tri).dot(&(b - a)) < 0.0);
+                    if crossed || clearance < -tolerance {
+                        let wa = closest_on_triangle(&a, &tri[0], &tri[1], &tri[2]);
+                        contacts.push(contact(setup, &at, t, wa, x0, h));
+                        added += 1;
+                        let depth = if crossed { pair.distance } else { -clearance };
+                        deepest = deepest.max(depth);
+                    } else {
+                        keys.remove(&(i as u32, pair.collider as u32, t));
+                    }
+                }
+            },
+        );
+        (added, deepest.max(0.0))
+    }
+}
+
+/// A vertex of a contact pair during a step: the pair, its collider, where the vertex is in
+/// the collider's frame at the step's start (`a`) and end (`b`), and the step's fractions.
+struct At<'a> {
+    pair: &'a ContactPair,
+    collider: &'a ColliderSetup,
+    live: &'a Live,
+    vertex: usize,
+    a: V,
+    b: V,
+    s: (f64, f64),
+}
+
+/// Calls `f` for every free vertex of every pair, in pair then vertex order, with its start
+/// `x0` and end `end(i)` in the collider's frame at fractions `s0` and `s1`.
+#[allow(clippy::too_many_arguments)]
+fn each_vertex(
+    setup: &CollisionSetup,
+    ranges: &[Option<Range<usize>>],
+    pinned: &[bool],
+    live: &[Live],
+    x0: &[V],
+    end: impl Fn(usize) -> V,
+    (s0, s1): (f64, f64),
+    mut f: impl FnMut(At<'_>),
+) {
+    for pair in &setup.pairs {
+        let Some(r) = ranges.get(pair.element).cloned().flatten() else {
+            continue;
+        };
+        let l = &live[pair.collider];
+        let (t0, t1) = (l.at(s0), l.at(s1));
+        for i in r.filter(|&i| !pinned[i]) {
+            f(At {
+                pair,
+                collider: &setup.colliders[pair.collider],
+                live: l,
+                vertex: i,
+                a: inverse(t0, &x0[i]),
+                b: inverse(t1, &end(i)),
+                s: (s0, s1),
+            });
+        }
+    }
+}
+
+fn inverse(t: Option<Transform>, p: &V) -> V {
+    match t {
+        Some(t) => t.inverse_transform_point(&(*p).into()).coords,
+        None => *p,
+    }
+}
+
+fn face_normal(tri: &[V; 3]) -> V {
+    (tri[1] - tri[0])
+        .cross(&(tri[2] - tri[0]))
+        .try_normalize(0.0)
+        .unwrap_or_else(V::zeros)
+}
+
+/// The contact normal (local frame, unit) of the point `a` against triangle `t` at its closest
+/// point (weights `w`), and `a`'s signed distance to the triangle. Closed meshes: a point
+/// behind the face is inside (negative distance) and pushed out through it. Open meshes: the
+/// normal points from the surface to the point; a point on the surface is kept on the side
+/// it comes from (against its motion towards `b`).
+fn side(c: &ColliderSetup, live: &Live, t: u32, w: &[f64; 3], a: &V, b: &V) -> (V, f64) {
+    let tri = c.triangles[t as usize].map(|v| live.local[v as usize]);
+    let q = w[0] * tri[0] + w[1] * tri[1] + w[2] * tri[2];
+    let nf = face_normal(&tri);
+    let diff = a - q;
+    let d = diff.norm();
+    let scale = tri.iter().fold(a.amax(), |m, p| m.max(p.amax()));
+    let tiny = d <= 1e-12 * scale.max(1.0);
+    if c.closed {
+        let inside = nf.dot(&diff) < 0.0;
+        match (tiny, inside) {
+            (true, _) => (nf, -d),
+            (false, true) => (-diff / d, -d),
+            (false, false) => (diff / d, d),
+        }
+    } else if tiny {
+        (if nf.dot(&(b - a)) > 0.0 { -nf } else { nf }, d)
+    } else {
+        (diff / d, d)
+    }
+}
+
+/// The contact of a vertex with triangle `t` (closest point weights `w` at the step's start
+/// position, local): the plane through the closest point, carried by the collider.
+fn contact(
+    setup: &CollisionSetup,
+    at: &At<'_>,
+    t: u32,
+    w: [f64; 3],
+    x0: &[V],
+    h: f64,
+) -> VertexContact {
+    let (pair, c, live, i, (s0, s1)) = (at.pair, at.collider, at.live, at.vertex, at.s);
+    let (n_local, _) = side(c, live, t, &w, &at.a, &at.b);
+    let tri = c.triangles[t as usize].map(|v| live.local[v as usize]);
+    let q = w[0] * tri[0] + w[1] * tri[1] + w[2] * tri[2];
+    let place = |s: f64, p: &V| match live.at(s) {
+        Some(t) => t.transform_point(&(*p).into()).coords,
+        None => *p,
+    };
+    let (q0, q1) = (place(s0, &q), place(s1, &q));
+    let n = match live.at(s1) {
+        Some(t) => t.rotation * n_local,
+        None => n_local,
+    };
+    // n·(x_end − q_end) ≥ distance ⟺ n·(v − v_c) ≥ −gap/h with these (docs/contacts.md).
+    let mut gap = n.dot(&(x0[i] - q0)) - pair.distance;
+    if gap < 0.0 {
+        gap *= pair.strength;
+    }
+    VertexContact {
+        vertex: i as u32,
+        frame: frame(&n),
+        gap,
+        velocity: (q1 - q0) / h,
+        friction: pair.friction,
+        cohesion: pair.cohesion * setup.areas[i] * h,
+        damping: pair.damping,
+    }
+}
