@@ -201,6 +201,11 @@ pub(super) fn setup(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeE
     for w in &compiled.warnings {
         cx.warn(w.clone());
     }
+    if compiled.collisions.is_some() {
+        // Stage C does not take contacts yet (issue 13 in progress): say so rather than
+        // simulate as if they held.
+        cx.warn("solver.coupled does not apply contacts with colliders yet: its solids pass through them (use solver.solid for contacts)");
+    }
     // About seven coupling iterations a frame, each a (warm-started) solid solve and a
     // pressure solve: see weft_sim::estimate.
     let cells = compiled.fluid.as_ref().map_or(0, |f| f.domain.cell_count());
