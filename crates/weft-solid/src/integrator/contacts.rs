@@ -168,6 +168,10 @@ impl Integrator {
             self.factor(&mut stats, 0.0)?;
             let mut admm_converged = false;
             for round in 0..max_admm.max(1) {
+                // A long ADMM (contact_iterations is the user's) still answers a stop.
+                if round % 16 == 15 && self.should_stop() {
+                    return Err(StepError::Interrupted { iteration: it });
+                }
                 cstats.admm_iterations += 1;
                 for (d, g) in delta.iter_mut().zip(&self.grad) {
                     *d = -g;
