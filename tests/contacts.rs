@@ -188,9 +188,10 @@ fn distance_to_triangle(p: [f64; 3], t: [[f64; 3]; 3]) -> f64 {
 }
 
 /// The drape example: at every frame every cloth vertex keeps at least the 2 mm both
-/// thicknesses ask from the sphere's mesh, less 1e-5 m (the solver's 1e-4 m/s tolerance
-/// over a 1/96 s step is 1e-6 m; a tenth of the gap's thousandth is allowed), checked
-/// against every triangle by the exact distance above, and no vertex is inside the sphere.
+/// thicknesses ask from the sphere's mesh, less what the solver is allowed: its 1e-4 m/s
+/// tolerance over a 1/96 s step (1.04e-6 m) plus the exact check's slack on triangles without
+/// a contact (a thousandth of the 2 mm), checked against every triangle by the exact distance
+/// above (measured: 6.4e-7 m short at worst); and no vertex is inside the sphere.
 /// The cloth comes to rest on it: its centre stops between the sphere's equator and top.
 #[test]
 fn the_drape_never_enters_the_sphere() {
@@ -219,7 +220,8 @@ fn the_drape_never_enters_the_sphere() {
         centre = cloth.geometry.positions().iter().map(|p| p[1]).sum::<f64>()
             / cloth.vertex_count() as f64;
     }
-    assert!(closest >= 2e-3 - 1e-5, "closest approach {closest} m");
+    let allowed = 1e-4 / 96.0 + 1e-3 * 2e-3;
+    assert!(closest >= 2e-3 - allowed, "closest approach {closest} m");
     assert!(
         closest < 2e-3 + 1e-4,
         "the cloth never touched: {closest} m"

@@ -33,7 +33,7 @@ pub struct BehaviorTree {
     pub behaviors: Vec<Arc<dyn Behavior>>,
 }
 
-fn bad(element: &str, field: &str, message: String) -> SimError {
+pub(crate) fn bad(element: &str, field: &str, message: String) -> SimError {
     SimError::BadParameter {
         element: element.into(),
         field: field.into(),
@@ -41,11 +41,19 @@ fn bad(element: &str, field: &str, message: String) -> SimError {
     }
 }
 
-fn positive(element: &str, field: &str, x: f64) -> Result<(), SimError> {
+pub(crate) fn positive(element: &str, field: &str, x: f64) -> Result<(), SimError> {
     if x > 0.0 && x.is_finite() {
         Ok(())
     } else {
         Err(bad(element, field, format!("must be > 0, got {x}")))
+    }
+}
+
+pub(crate) fn non_negative(element: &str, field: &str, x: f64) -> Result<(), SimError> {
+    if x >= 0.0 && x.is_finite() {
+        Ok(())
+    } else {
+        Err(bad(element, field, format!("must be >= 0, got {x}")))
     }
 }
 
@@ -112,20 +120,8 @@ impl Behavior for DiscreteShellMaterial {
                     format!("must be in [0, 0.5), got {}", shell.poisson_ratio),
                 ));
             }
-            if !(shell.bend_scale >= 0.0 && shell.bend_scale.is_finite()) {
-                return Err(bad(
-                    name,
-                    "discrete_shell.bend_scale",
-                    format!("must be >= 0, got {}", shell.bend_scale),
-                ));
-            }
-            if !(shell.damping >= 0.0 && shell.damping.is_finite()) {
-                return Err(bad(
-                    name,
-                    "discrete_shell.damping",
-                    format!("must be >= 0, got {}", shell.damping),
-                ));
-            }
+            non_negative(name, "discrete_shell.bend_scale", shell.bend_scale)?;
+            non_negative(name, "discrete_shell.damping", shell.damping)?;
             let rest = rest_positions(e, &shell.rest_channel)?;
             let off = b.offset(ei).expect("cloth elements have a vertex range");
             // A face listed twice (double-sided exports) would double mass and stiffness and
@@ -264,13 +260,7 @@ impl Behavior for RodMaterial {
             let ei_bend = rod_bending_stiffness(name, &rod)?;
             positive(name, "rod.stretch_scale", rod.stretch_scale)?;
             positive(name, "density.line_density", density.line_density)?;
-            if !(rod.damping >= 0.0 && rod.damping.is_finite()) {
-                return Err(bad(
-                    name,
-                    "rod.damping",
-                    format!("must be >= 0, got {}", rod.damping),
-                ));
-            }
+            non_negative(name, "rod.damping", rod.damping)?;
             let rest = rest_positions(e, &rod.rest_channel)?;
             let off = b.offset(ei).expect("hair elements have a vertex range");
             let area = std::f64::consts::PI * rod.radius * rod.radius;
@@ -326,9 +316,7 @@ fn rod_bending_stiffness(name: &str, rod: &Rod) -> Result<f64, SimError> {
         ("rod.bend_scale", rod.bend_scale),
         ("rod.bend_stiffness", rod.bend_stiffness),
     ] {
-        if !(v >= 0.0 && v.is_finite()) {
-            return Err(bad(name, field, format!("must be >= 0, got {v}")));
-        }
+        non_negative(name, field, v)?;
     }
     let area = std::f64::consts::PI * rod.radius * rod.radius;
     let ei = if rod.bend_stiffness > 0.0 {
@@ -467,13 +455,7 @@ impl Behavior for Damping {
         &[]
     }
     fn apply(&self, _scene: &[SceneElement], b: &mut SystemBuilder) -> Result<(), SimError> {
-        if !(self.coefficient >= 0.0 && self.coefficient.is_finite()) {
-            return Err(bad(
-                "(tree)",
-                "damping.coefficient",
-                format!("must be >= 0, got {}", self.coefficient),
-            ));
-        }
+        non_negative("(tree)", "damping.coefficient", self.coefficient)?;
         for v in 0..b.system.mass.len() {
             b.add_damping(v, self.coefficient);
         }

@@ -32,7 +32,7 @@ pub use build::{
     ClampPin, Compiled, Pin, SYSTEM_BYTES_PER_VERTEX, SystemBuilder, compile, compile_within,
 };
 pub use clamp::Ghost;
-pub use collide::{ColliderSetup, Collision, CollisionSetup, ContactPair, Detected, Detector};
+pub use collide::{ColliderSetup, Collision, CollisionSetup, ContactPair, Detector};
 pub use coupled::{
     CoupledError, CoupledSettings, CoupledStepper, Coupling, DragElement, DragShape, Exchange,
     Predicted,

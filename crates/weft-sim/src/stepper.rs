@@ -238,11 +238,6 @@ impl SolidStepper {
             &mut self.contacts,
         );
         cs.detection_seconds += t.elapsed().as_secs_f64();
-        let tolerance = 1e-3
-            * setup
-                .pairs
-                .iter()
-                .fold(f64::INFINITY, |m, p| m.min(p.distance));
         let mut round = 0;
         loop {
             let mut trial = st.clone();
@@ -267,7 +262,6 @@ impl SolidStepper {
                 &st.x,
                 &trial.x,
                 (s0, s1, h),
-                tolerance,
                 &mut self.contacts,
             );
             cs.detection_seconds += t.elapsed().as_secs_f64();

@@ -22,6 +22,7 @@
 mod bvh;
 pub(crate) mod geometry;
 
+use crate::behavior::{bad, non_negative, positive};
 use crate::builder::SystemBuilder;
 use crate::error::SimError;
 use bvh::TriangleTree;
@@ -83,37 +84,10 @@ pub struct CollisionSetup {
     pub areas: Vec<f64>,
 }
 
-fn bad(element: &str, field: &str, message: String) -> SimError {
-    SimError::BadParameter {
-        element: element.into(),
-        field: field.into(),
-        message,
-    }
-}
-
 fn check_collider_sec(name: &str, c: &Collider) -> Result<(), SimError> {
-    if !(c.friction >= 0.0 && c.friction.is_finite()) {
-        return Err(bad(
-            name,
-            "collider.friction",
-            format!("must be >= 0, got {}", c.friction),
-        ));
-    }
-    if !(c.thickness > 0.0 && c.thickness.is_finite()) {
-        return Err(bad(
-            name,
-            "collider.thickness",
-            format!("must be > 0, got {}", c.thickness),
-        ));
-    }
-    if !(c.cohesion >= 0.0 && c.cohesion.is_finite()) {
-        return Err(bad(
-            name,
-            "collider.cohesion",
-            format!("must be >= 0, got {}", c.cohesion),
-        ));
-    }
-    Ok(())
+    non_negative(name, "collider.friction", c.friction)?;
+    positive(name, "collider.thickness", c.thickness)?;
+    non_negative(name, "collider.cohesion", c.cohesion)
 }
 
 /// Closed: every undirected edge in exactly two triangles, once in each direction.
@@ -171,13 +145,7 @@ impl crate::Behavior for Collision {
                     format!("must be in (0, 1], got {}", response.strength),
                 ));
             }
-            if !(response.damping >= 0.0 && response.damping.is_finite()) {
-                return Err(bad(
-                    &g.name,
-                    "collision_response.damping",
-                    format!("must be >= 0, got {}", response.damping),
-                ));
-            }
+            non_negative(&g.name, "collision_response.damping", response.damping)?;
             for (field, members, want) in [
                 ("collision_group.members", &group.members, "a cloth or hair"),
                 ("collision_group.colliders", &group.colliders, "a collider"),
@@ -241,20 +209,20 @@ impl crate::Behavior for Collision {
                         Some(&k) => k,
                         None => {
                             let k = setup.colliders.len();
+                            if let Some(cs) = scene[c].secs.get::<Collider>() {
+                                check_collider_sec(&scene[c].name, cs)?;
+                            }
                             setup.colliders.push(collider_setup(&scene[c], c, b)?);
                             collider_index.insert(c, k);
                             k
                         }
                     };
                     let (friction, distance, cohesion) = match scene[c].secs.get::<Collider>() {
-                        Some(cs) => {
-                            check_collider_sec(&scene[c].name, cs)?;
-                            (
-                                (ms.friction * cs.friction).sqrt(),
-                                ms.thickness + cs.thickness,
-                                ms.cohesion.max(cs.cohesion),
-                            )
-                        }
+                        Some(cs) => (
+                            (ms.friction * cs.friction).sqrt(),
+                            ms.thickness + cs.thickness,
+                            ms.cohesion.max(cs.cohesion),
+                        ),
                         None => (ms.friction, ms.thickness, ms.cohesion),
                     };
                     setup.pairs.push(ContactPair {
@@ -270,7 +238,7 @@ impl crate::Behavior for Collision {
                 }
             }
         }
-        setup.areas = contact_areas(scene, b)?;
+        setup.areas = contact_areas(scene, b);
         b.collisions = Some(setup);
         Ok(())
     }
@@ -343,7 +311,7 @@ fn collider_setup(
     })
 }
 
-fn contact_areas(scene: &[SceneElement], b: &SystemBuilder) -> Result<Vec<f64>, SimError> {
+fn contact_areas(scene: &[SceneElement], b: &SystemBuilder) -> Vec<f64> {
     let mut areas = vec![0.0; b.x.len()];
     for (ei, e) in scene.iter().enumerate() {
         let Some(r) = b.ranges.get(ei).cloned().flatten() else {
@@ -376,7 +344,7 @@ fn contact_areas(scene: &[SceneElement], b: &SystemBuilder) -> Result<Vec<f64>, 
             _ => {}
         }
     }
-    Ok(areas)
+    areas
 }
 
 /// A collider during a frame: its mesh in its own frame and the tree over it.
@@ -395,16 +363,6 @@ impl Live {
 
 /// Where a contact came from: (vertex, collider, triangle).
 type Key = (u32, u32, u32);
-
-/// What detection found over a step.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Detected {
-    /// Solves of the step (1 + the rounds that added contacts after an exact check).
-    pub solves: usize,
-    /// The largest penetration at the end of the step, measured by the exact check [m]
-    /// (how far some vertex is inside the distance it should keep; 0: none).
-    pub max_penetration: f64,
-}
 
 /// Finds contacts each step (see the module doc). Holds no simulation state: the colliders'
 /// shapes and transforms come from the scene each frame.
@@ -549,9 +507,9 @@ impl Detector {
 
     /// The exact check after a step from `x0` to `x1`: every vertex's path (in each
     /// collider's frame) against the triangles near it. A triangle the path crossed, or that
-    /// the end is closer to than the distance kept (less `tolerance`), and that has no contact
-    /// with the vertex yet, gets one (appended to `contacts`). Returns how many were added and
-    /// the largest penetration at the end [m].
+    /// the end is closer to than the distance kept (less a thousandth of it), and that has no
+    /// contact with the vertex yet, gets one (appended to `contacts`). Returns how many were
+    /// added and the largest penetration at the end [m].
     #[allow(clippy::too_many_arguments)]
     pub fn check(
         &mut self,
@@ -561,7 +519,6 @@ impl Detector {
         x0: &[V],
         x1: &[V],
         (s0, s1, h): (f64, f64, f64),
-        tolerance: f64,
         contacts: &mut Vec<VertexContact>,
     ) -> (usize, f64) {
         let mut added = 0;
@@ -595,7 +552,7 @@ impl Detector {
                     }
                     let crossed = segment_crosses_triangle(&a, &b, &tri[0], &tri[1], &tri[2])
                         && (!c.closed || face_normal(&tri).dot(&(b - a)) < 0.0);
-                    if crossed || clearance < -tolerance {
+                    if crossed || clearance < -1e-3 * pair.distance {
                         let wa = closest_on_triangle(&a, &tri[0], &tri[1], &tri[2]);
                         contacts.push(contact(setup, &at, t, wa, x0, h));
                         added += 1;

@@ -119,8 +119,7 @@ impl Integrator {
         let mut delta = vec![0.0; dofs];
         // The velocity each contact's term pulls its vertex towards in the last primal step.
         let mut want = vec![Vector3::zeros(); active.len()];
-        let diag =
-            |s: &Self, f: usize, c: usize| s.col_ptr[3 * f + c] + 3 * s.diag_slot[f] as usize + c;
+        // The value slot of row a, column b of free vertex f's diagonal block.
         let block = |s: &Self, f: usize, a: usize, b: usize| {
             s.col_ptr[3 * f + b] + 3 * s.diag_slot[f] as usize + a
         };
@@ -150,7 +149,7 @@ impl Integrator {
             for (k, (f, c)) in active.iter().enumerate() {
                 rho[k] = sigma * rho_hat[k];
                 for a in 0..3 {
-                    let s = diag(self, *f, a);
+                    let s = block(self, *f, a, a);
                     self.values[s] += rho[k] / (h * h);
                 }
                 let dm = c.damping * sys.mass[c.vertex as usize] / h;
@@ -221,7 +220,7 @@ impl Integrator {
                         for (k, (f, _)) in active.iter().enumerate() {
                             let change = (next - sigma) * rho_hat[k];
                             for a in 0..3 {
-                                let s = diag(self, *f, a);
+                                let s = block(self, *f, a, a);
                                 self.values[s] += change / (h * h);
                             }
                             rho[k] = next * rho_hat[k];
