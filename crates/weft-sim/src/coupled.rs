@@ -26,6 +26,7 @@
 //! converged, so total momentum is conserved to the coupling tolerance. That is why only the
 //! drag tensor's diagonal is used on both sides: the grid holds one coefficient per face.
 
+use crate::collide::{ContactFrameStats, Contacts};
 use crate::relaxation::RelaxationMethod;
 use nalgebra::Vector3;
 use weft_fluid::advect::advect_velocity;
@@ -471,7 +472,9 @@ impl CoupledStepper {
     /// **Solid solve** (stage C): one implicit step of `h` from `start` with the exchange's
     /// drag and forces (written into `sys`), attached vertices at `targets`. Newton starts
     /// from `guess` when given (the last coupling iterate's positions: the forces change
-    /// little between iterations, so it is close), else from x⁰ + h v⁰.
+    /// little between iterations, so it is close), else from x⁰ + h v⁰. With `contacts` (the
+    /// scene's contact machinery, its `frame` already set, and the stats to add to), the step
+    /// is the hard-contact solve `solver.solid` uses, with the same detection and checks.
     #[allow(clippy::too_many_arguments)]
     pub fn solve_solid(
         &mut self,
@@ -483,6 +486,7 @@ impl CoupledStepper {
         h: f64,
         settings: &CoupledSettings,
         iteration: usize,
+        contacts: Option<(&mut Contacts, &mut ContactFrameStats)>,
         out: &mut State,
     ) -> Result<StepStats, CoupledError> {
         sys.drag.clone_from(&exchange.drag);
@@ -498,9 +502,23 @@ impl CoupledStepper {
                 self.integrator.insert(i)
             }
         };
-        integrator
-            .step_from(sys, out, guess, targets, h, &settings.solid)
-            .map_err(fail)
+        match contacts {
+            Some((c, stats)) => c
+                .step(
+                    integrator,
+                    sys,
+                    out,
+                    targets,
+                    guess,
+                    (0.0, 1.0, h),
+                    &settings.solid,
+                    stats,
+                )
+                .map_err(fail),
+            None => integrator
+                .step_from(sys, out, guess, targets, h, &settings.solid)
+                .map_err(fail),
+        }
     }
 
     /// **Rasterize** (stage D): `out` becomes the predicted fluid `u_star` with the

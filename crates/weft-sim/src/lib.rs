@@ -32,7 +32,9 @@ pub use build::{
     ClampPin, Compiled, Pin, SYSTEM_BYTES_PER_VERTEX, SystemBuilder, compile, compile_within,
 };
 pub use clamp::Ghost;
-pub use collide::{ColliderSetup, Collision, CollisionSetup, ContactPair, Detector};
+pub use collide::{
+    ColliderSetup, Collision, CollisionSetup, ContactFrameStats, ContactPair, Contacts, Detector,
+};
 pub use coupled::{
     CoupledError, CoupledSettings, CoupledStepper, Coupling, DragElement, DragShape, Exchange,
     Predicted,
@@ -40,4 +42,4 @@ pub use coupled::{
 pub use error::SimError;
 pub use fluid::FluidSpec;
 pub use relaxation::{Relaxation, RelaxationMethod, fluid_change, relax, velocity_change};
-pub use stepper::{ContactFrameStats, FrameStats, SimState, SolidStepper, StepperSettings};
+pub use stepper::{FrameStats, SimState, SolidStepper, StepperSettings};

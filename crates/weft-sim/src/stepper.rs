@@ -7,13 +7,12 @@
 //! counted in the frame's statistics; if it still fails the error names the frame and substep.
 
 use crate::build::Compiled;
-use crate::collide::Detector;
+use crate::collide::{ContactFrameStats, Contacts};
 use crate::error::SimError;
 use nalgebra::Vector3;
 use std::sync::Arc;
 use std::time::Instant;
 use weft_scene::{SceneElement, Transform};
-use weft_solid::integrator::{ContactSet, VertexContact};
 use weft_solid::{Integrator, Settings, SolidSystem, State, StepError};
 
 /// How frames are stepped.
@@ -78,25 +77,6 @@ pub struct FrameStats {
     pub contacts: Option<ContactFrameStats>,
 }
 
-/// What contacts cost and did over a frame.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct ContactFrameStats {
-    /// Most contacts in one step.
-    pub max_contacts: usize,
-    /// Contacts summed over steps.
-    pub contacts: usize,
-    /// ADMM iterations summed over steps (and their re-solves).
-    pub admm_iterations: usize,
-    /// Re-solves after the exact check found a path the contacts missed.
-    pub resolves: usize,
-    /// Largest penetration at the end of a step, measured by the exact check [m].
-    pub max_penetration: f64,
-    /// Largest distance from Coulomb's law at a step's end [m/s].
-    pub max_residual: f64,
-    /// Seconds finding contacts (detection and exact checks).
-    pub detection_seconds: f64,
-}
-
 /// Steps one compiled scene. Owns the integrator (pattern and factorization workspace) and a
 /// working copy of the system whose spring targets move; it holds no simulation state, so
 /// stepping from any checkpoint gives the same result.
@@ -106,9 +86,8 @@ pub struct SolidStepper {
     integrator: Integrator,
     settings: StepperSettings,
     targets: Vec<Vector3<f64>>,
-    /// Contact detection (None: the scene has no contact pairs).
-    detector: Option<Detector>,
-    contacts: Vec<VertexContact>,
+    /// Contact machinery (None: the scene has no contact pairs, or no frame was stepped).
+    contacts: Option<Contacts>,
 }
 
 impl SolidStepper {
@@ -132,8 +111,7 @@ impl SolidStepper {
             integrator,
             settings,
             targets,
-            detector: None,
-            contacts: Vec::new(),
+            contacts: None,
         })
     }
 
@@ -174,8 +152,17 @@ impl SolidStepper {
         stats: &mut FrameStats,
     ) -> Result<(), StepError> {
         self.set_targets(from, to, s1);
-        let result = if self.detector.is_some() {
-            self.contact_step(st, (s0, s1, h), stats)
+        let result = if let Some(c) = &mut self.contacts {
+            c.step(
+                &mut self.integrator,
+                &self.system,
+                st,
+                Some(&self.targets),
+                None,
+                (s0, s1, h),
+                &self.settings.solver,
+                stats.contacts.get_or_insert_with(Default::default),
+            )
         } else {
             self.integrator.step(
                 &self.system,
@@ -211,73 +198,6 @@ impl SolidStepper {
         }
     }
 
-    /// One step with contacts: detect, solve, check every path exactly, and solve again from
-    /// the start with the contacts the check added (at most `collide::MAX_ROUNDS` times).
-    fn contact_step(
-        &mut self,
-        st: &mut State,
-        (s0, s1, h): (f64, f64, f64),
-        stats: &mut FrameStats,
-    ) -> Result<weft_solid::StepStats, StepError> {
-        let setup = self
-            .compiled
-            .collisions
-            .as_ref()
-            .expect("a detector exists only with a collision setup");
-        let detector = self.detector.as_mut().expect("checked by the caller");
-        let cs = stats.contacts.get_or_insert_with(Default::default);
-        let t = Instant::now();
-        let c = &self.compiled;
-        detector.detect(
-            setup,
-            &c.ranges,
-            &self.system.pinned,
-            &st.x,
-            &st.v,
-            (s0, s1, h),
-            &mut self.contacts,
-        );
-        cs.detection_seconds += t.elapsed().as_secs_f64();
-        let mut round = 0;
-        loop {
-            let mut trial = st.clone();
-            let (step, contact) = self.integrator.step_contacts(
-                &self.system,
-                &mut trial,
-                Some(&self.targets),
-                h,
-                &self.settings.solver,
-                ContactSet {
-                    contacts: &self.contacts,
-                    max_admm: self.settings.contact_iterations,
-                    warm: &[],
-                },
-            )?;
-            cs.admm_iterations += contact.admm_iterations;
-            let t = Instant::now();
-            let (added, penetration) = detector.check(
-                setup,
-                &c.ranges,
-                &self.system.pinned,
-                &st.x,
-                &trial.x,
-                (s0, s1, h),
-                &mut self.contacts,
-            );
-            cs.detection_seconds += t.elapsed().as_secs_f64();
-            round += 1;
-            if added == 0 || round == crate::collide::MAX_ROUNDS {
-                cs.max_contacts = cs.max_contacts.max(self.contacts.len());
-                cs.contacts += self.contacts.len();
-                cs.max_penetration = cs.max_penetration.max(penetration);
-                cs.max_residual = cs.max_residual.max(contact.max_residual);
-                *st = trial;
-                return Ok(step);
-            }
-            cs.resolves += 1;
-        }
-    }
-
     /// State at `frame` from the state at the previous frame; `scene` is the scene at `frame`
     /// (its attachment transforms are this frame's targets).
     pub fn advance(
@@ -294,11 +214,12 @@ impl SolidStepper {
         let h = frame_dt / n as f64;
         let mut st = prev.solid.clone();
         let mut stats = FrameStats::default();
-        if let Some(setup) = &self.compiled.collisions {
-            let d = self
-                .detector
-                .get_or_insert_with(|| Detector::new(setup, scene));
-            d.frame(setup, scene, &prev.transforms, &to)?;
+        if self.contacts.is_none() {
+            let max_admm = self.settings.contact_iterations;
+            self.contacts = Contacts::new(self.compiled.clone(), scene, max_admm);
+        }
+        if let Some(c) = &mut self.contacts {
+            c.frame(scene, &prev.transforms, &to)?;
             stats.contacts = Some(ContactFrameStats::default());
         }
         for k in 0..n {

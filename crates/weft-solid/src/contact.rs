@@ -1,5 +1,5 @@
-//! The per-contact Signorini–Coulomb solve of the contact step (issue 13, after Daviet 2020;
-//! the ADMM that calls it is not wired yet).
+//! The per-contact Signorini–Coulomb solve of the contact step (after Daviet 2020; the ADMM
+//! in `integrator/contacts.rs` calls it once per contact and iteration).
 //!
 //! A contact has a local frame (n, t₁, t₂), n out of the collider. Its relative velocity u and
 //! the impulse r the collider gives (both in that frame: normal component first) obey

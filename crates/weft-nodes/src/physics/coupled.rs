@@ -25,8 +25,9 @@ use weft_fluid::{FluidProperties, MacGrid, PressureSolve};
 use weft_graph::{Compute, EvalCx, Kernel, NodeError, NodeSpec, Registry, RegistryError, Value};
 use weft_scene::Transform;
 use weft_sim::{
-    BehaviorTree, Compiled, CoupledSettings, CoupledStepper, Coupling, Exchange, Relaxation,
-    RelaxationMethod, SimState, compile_within, fluid_change, relax, velocity_change,
+    BehaviorTree, Compiled, ContactFrameStats, Contacts, CoupledSettings, CoupledStepper, Coupling,
+    Exchange, Relaxation, RelaxationMethod, SimState, compile_within, fluid_change, relax,
+    velocity_change,
 };
 use weft_solid::{Method, Settings, SolidSystem, State};
 
@@ -124,6 +125,8 @@ pub(super) struct Workspace {
     stepper: CoupledStepper,
     system: Option<SolidSystem>,
     targets: Vec<Vector3<f64>>,
+    /// Contact machinery (stage C; None: no contact pairs, or not built yet).
+    contacts: Option<Contacts>,
     log: VecDeque<serde_json::Value>,
     /// The graph's stop handle the solvers were given.
     interrupt: Option<weft_graph::Interrupt>,
@@ -200,11 +203,6 @@ pub(super) fn setup(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeE
         Arc::new(compile_within(&scene, &tree, Some(cx.memory_budget())).map_err(failed)?);
     for w in &compiled.warnings {
         cx.warn(w.clone());
-    }
-    if compiled.collisions.is_some() {
-        // Stage C does not take contacts yet (issue 13 in progress): say so rather than
-        // simulate as if they held.
-        cx.warn("solver.coupled does not apply contacts with colliders yet: its solids pass through them (use solver.solid for contacts)");
     }
     // About seven coupling iterations a frame, each a (warm-started) solid solve and a
     // pressure solve: see weft_sim::estimate.
@@ -379,13 +377,25 @@ pub(super) fn solid(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeE
         "none" => RelaxationMethod::None,
         _ => RelaxationMethod::Aitken,
     };
+    let max_admm = p.usize("contact_iterations")?.max(1);
     let frame = cx.frame();
     let ws = ws.for_scene(&step.compiled);
+    if ws.contacts.is_none() {
+        ws.contacts = Contacts::new(step.compiled.clone(), &step.scene, max_admm);
+    }
     let (Some(sys), targets) = (ws.system.as_mut(), &mut ws.targets) else {
         unreachable!("for_scene sets the system")
     };
     step.compiled
         .set_targets(&step.start.transforms, &step.to, 1.0, sys, targets);
+    // The step's contacts are found afresh in every coupling iteration from the step's start
+    // (and checked against that iteration's path): an iteration depends only on its inputs.
+    let mut contact_stats = ContactFrameStats::default();
+    if let Some(c) = &mut ws.contacts {
+        c.max_admm = max_admm;
+        c.frame(&step.scene, &step.start.transforms, &step.to)
+            .map_err(|e| failed(format!("frame {frame}: {e}")))?;
+    }
     let mut next = State {
         x: Vec::new(),
         v: Vec::new(),
@@ -402,6 +412,7 @@ pub(super) fn solid(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeE
             step.h,
             &st,
             it.iteration,
+            ws.contacts.as_mut().map(|c| (c, &mut contact_stats)),
             &mut next,
         )
         .map_err(|e| stage_error(frame, e, &ws.interrupt))?;
@@ -428,6 +439,7 @@ pub(super) fn solid(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeE
         "frame": frame, "iteration": it.iteration, "newton_iterations": stats.iterations,
         "residual": stats.residuals.last(), "omega": relaxation.omega,
         "seconds": t.elapsed().as_secs_f64(),
+        "contacts": ws.contacts.is_some().then(|| super::types::contact_stats_json(&contact_stats)),
     }));
     cx.set(
         "solid",

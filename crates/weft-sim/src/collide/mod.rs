@@ -21,6 +21,9 @@
 
 mod bvh;
 pub(crate) mod geometry;
+mod step;
+
+pub use step::{ContactFrameStats, Contacts};
 
 use crate::behavior::{bad, non_negative, positive};
 use crate::builder::SystemBuilder;

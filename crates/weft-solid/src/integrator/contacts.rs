@@ -1,5 +1,6 @@
 //! Implicit Euler with hard frictional contacts against kinematic colliders, after Daviet 2020
-//! (issue 13, in progress: `weft-sim` does not call it yet; see `docs/contacts.md`).
+//! (`weft-sim`'s collision detection hands it the contacts; the derivations are in
+//! `docs/contacts.md`).
 //!
 //! ADMM on the split z_c = H_c v, H_c v = R_c(v_i − v_c) a contact's relative velocity in its
 //! frame. Newton outside: assemble the incremental potential's Hessian at x, add ρ_c/h² I on
@@ -46,6 +47,10 @@ pub struct ContactSet<'a> {
     /// Impulses to start from, one per contact [N·s] in its frame (the last step's, matched
     /// by the caller; shorter than `contacts`: the rest start at zero).
     pub warm: &'a [[f64; 3]],
+    /// Newton's first iterate (end-of-step positions, e.g. the last coupling iteration's), as
+    /// in [`Integrator::step_from`]; `None`: x⁰ + h v⁰. Ignored when of the wrong length or
+    /// not finite.
+    pub guess: Option<&'a [Vector3<f64>]>,
 }
 
 /// What the contact solve did over a step.
@@ -81,8 +86,11 @@ impl Integrator {
         sys.check(state)?;
         let x0 = state.x.clone();
         let target = |i: usize| pinned_to.map_or(x0[i], |p| p[i]);
+        let guess = set.guess.filter(|g| {
+            g.len() == state.x.len() && g.iter().all(|p| p.iter().all(|c| c.is_finite()))
+        });
         let mut x = state.x.clone();
-        self.predict(sys, state, &mut x, &target, None, h);
+        self.predict(sys, state, &mut x, &target, guess, h);
         // Contacts on held vertices have nothing to move; `index` maps back to `contacts`.
         let index: Vec<usize> = (0..contacts.len())
             .filter(|&k| {
@@ -382,6 +390,7 @@ mod tests {
                         contacts: if with_ghost { &two } else { &two[..1] },
                         max_admm: 200,
                         warm: &[],
+                        guess: None,
                     },
                 )
                 .unwrap();
@@ -445,6 +454,7 @@ mod tests {
                             contacts: &[c],
                             max_admm: 200,
                             warm: &[],
+                            guess: None,
                         },
                     )
                     .unwrap();
@@ -511,6 +521,7 @@ mod tests {
                         contacts: &contacts,
                         max_admm: 500,
                         warm: &[],
+                        guess: None,
                     },
                 )
                 .unwrap();

@@ -1,0 +1,140 @@
+//! One implicit step with contacts, shared by both solvers (`solver.solid`'s
+//! [`crate::SolidStepper`] and the coupled solver's stage C): detect, solve, check every path
+//! exactly, and solve again from the start with the contacts the check added.
+
+use super::{Detector, MAX_ROUNDS};
+use crate::build::Compiled;
+use crate::error::SimError;
+use nalgebra::Vector3;
+use std::sync::Arc;
+use std::time::Instant;
+use weft_scene::{SceneElement, Transform};
+use weft_solid::integrator::{ContactSet, VertexContact};
+use weft_solid::{Integrator, Settings, SolidSystem, State, StepError, StepStats};
+
+/// What contacts cost and did over a frame (or a coupling iteration).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ContactFrameStats {
+    /// Most contacts in one step.
+    pub max_contacts: usize,
+    /// Contacts summed over steps.
+    pub contacts: usize,
+    /// ADMM iterations summed over steps (and their re-solves).
+    pub admm_iterations: usize,
+    /// Re-solves after the exact check found a path the contacts missed.
+    pub resolves: usize,
+    /// Largest penetration at the end of a step, measured by the exact check [m].
+    pub max_penetration: f64,
+    /// Largest distance from Coulomb's law at a step's end [m/s].
+    pub max_residual: f64,
+    /// Seconds finding contacts (detection and exact checks).
+    pub detection_seconds: f64,
+}
+
+/// The contact machinery of a compiled scene that has contact pairs: the detector and the
+/// step's contact list (reused buffers; no simulation state, so a step depends only on its
+/// inputs).
+pub struct Contacts {
+    compiled: Arc<Compiled>,
+    detector: Detector,
+    contacts: Vec<VertexContact>,
+    /// ADMM iterations allowed per Newton iteration.
+    pub max_admm: usize,
+}
+
+impl Contacts {
+    /// The machinery for `compiled` as its colliders are in `scene`; `None` when the scene
+    /// has no contact pairs (nothing is built).
+    pub fn new(compiled: Arc<Compiled>, scene: &[SceneElement], max_admm: usize) -> Option<Self> {
+        let detector = Detector::new(compiled.collisions.as_ref()?, scene);
+        Some(Contacts {
+            compiled,
+            detector,
+            contacts: Vec::new(),
+            max_admm,
+        })
+    }
+
+    /// Before stepping a frame: the colliders' transforms at its start (`from`) and end
+    /// (`to`), and their shapes in `scene` (the frame's end).
+    pub fn frame(
+        &mut self,
+        scene: &[SceneElement],
+        from: &[Option<Transform>],
+        to: &[Option<Transform>],
+    ) -> Result<(), SimError> {
+        let setup = self.compiled.collisions.as_ref().expect("checked in new");
+        self.detector.frame(setup, scene, from, to)
+    }
+
+    /// One implicit step of `h` of `sys` from `st` (replaced by the end state) between
+    /// fractions `s0` and `s1` of the frame, held vertices at `targets`, Newton from `guess`
+    /// when given: contacts detected from the start, then the exact check of every path after
+    /// each solve adds the contacts it missed and the step is solved again from the start (at
+    /// most `MAX_ROUNDS` solves; the last one's penetration is reported). Counts go to `cs`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn step(
+        &mut self,
+        integrator: &mut Integrator,
+        sys: &SolidSystem,
+        st: &mut State,
+        targets: Option<&[Vector3<f64>]>,
+        guess: Option<&[Vector3<f64>]>,
+        (s0, s1, h): (f64, f64, f64),
+        settings: &Settings,
+        cs: &mut ContactFrameStats,
+    ) -> Result<StepStats, StepError> {
+        let c = &*self.compiled;
+        let setup = c.collisions.as_ref().expect("checked in new");
+        let t = Instant::now();
+        self.detector.detect(
+            setup,
+            &c.ranges,
+            &sys.pinned,
+            &st.x,
+            &st.v,
+            (s0, s1, h),
+            &mut self.contacts,
+        );
+        cs.detection_seconds += t.elapsed().as_secs_f64();
+        let mut round = 0;
+        loop {
+            let mut trial = st.clone();
+            let (step, contact) = integrator.step_contacts(
+                sys,
+                &mut trial,
+                targets,
+                h,
+                settings,
+                ContactSet {
+                    contacts: &self.contacts,
+                    max_admm: self.max_admm,
+                    warm: &[],
+                    guess,
+                },
+            )?;
+            cs.admm_iterations += contact.admm_iterations;
+            let t = Instant::now();
+            let (added, penetration) = self.detector.check(
+                setup,
+                &c.ranges,
+                &sys.pinned,
+                &st.x,
+                &trial.x,
+                (s0, s1, h),
+                &mut self.contacts,
+            );
+            cs.detection_seconds += t.elapsed().as_secs_f64();
+            round += 1;
+            if added == 0 || round == MAX_ROUNDS {
+                cs.max_contacts = cs.max_contacts.max(self.contacts.len());
+                cs.contacts += self.contacts.len();
+                cs.max_penetration = cs.max_penetration.max(penetration);
+                cs.max_residual = cs.max_residual.max(contact.max_residual);
+                *st = trial;
+                return Ok(step);
+            }
+            cs.resolves += 1;
+        }
+    }
+}
