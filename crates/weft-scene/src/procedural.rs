@@ -46,6 +46,36 @@ pub fn grid(size: [f64; 2], res: [usize; 2], plane: Plane, center: [f64; 3]) -> 
     }
 }
 
+/// A closed box of extents `size` [m] (x, y, z) centred at `center`: 8 corners, 12 triangles
+/// wound counter-clockwise seen from outside (normals outward).
+pub fn cuboid(center: [f64; 3], size: [f64; 3]) -> Mesh {
+    let corner = |k: usize| {
+        let s = |bit: usize, a: usize| if k >> bit & 1 == 1 { 0.5 } else { -0.5 } * size[a];
+        [
+            center[0] + s(0, 0),
+            center[1] + s(1, 1),
+            center[2] + s(2, 2),
+        ]
+    };
+    // Corner k has x from bit 0, y from bit 1, z from bit 2; each face as a quad (a, b, c, d)
+    // counter-clockwise from outside.
+    let faces: [[u32; 4]; 6] = [
+        [0, 4, 6, 2], // −x
+        [1, 3, 7, 5], // +x
+        [0, 1, 5, 4], // −y
+        [2, 6, 7, 3], // +y
+        [0, 2, 3, 1], // −z
+        [4, 5, 7, 6], // +z
+    ];
+    Mesh {
+        positions: (0..8).map(corner).collect(),
+        triangles: faces
+            .iter()
+            .flat_map(|&[a, b, c, d]| [[a, b, c], [a, c, d]])
+            .collect(),
+    }
+}
+
 /// A UV sphere of `rings` latitude bands and `sectors` longitude bands (for display).
 pub fn sphere(center: [f64; 3], radius: f64, rings: usize, sectors: usize) -> Mesh {
     let (rings, sectors) = (rings.max(2), sectors.max(3));
@@ -125,6 +155,35 @@ pub fn strands_on_sphere(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The box is closed and outward: every directed edge appears once and its reverse once,
+    /// and the signed volume (divergence theorem, Σ a·(b×c)/6) is the box's, positive.
+    #[test]
+    fn cuboid_is_closed_outward_and_of_its_volume() {
+        let m = cuboid([1.0, 2.0, 3.0], [0.5, 2.0, 4.0]);
+        assert_eq!((m.positions.len(), m.triangles.len()), (8, 12));
+        let mut edges = std::collections::BTreeSet::new();
+        for t in &m.triangles {
+            for k in 0..3 {
+                assert!(edges.insert((t[k], t[(k + 1) % 3])), "edge repeated");
+            }
+        }
+        assert!(edges.iter().all(|&(a, b)| edges.contains(&(b, a))));
+        let volume: f64 = m
+            .triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| m.positions[i as usize]);
+                let bc = [
+                    b[1] * c[2] - b[2] * c[1],
+                    b[2] * c[0] - b[0] * c[2],
+                    b[0] * c[1] - b[1] * c[0],
+                ];
+                (a[0] * bc[0] + a[1] * bc[1] + a[2] * bc[2]) / 6.0
+            })
+            .sum();
+        assert!((volume - 4.0).abs() < 1e-12, "{volume}");
+    }
 
     #[test]
     fn grid_counts_and_extent() {

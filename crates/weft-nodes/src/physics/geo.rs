@@ -97,6 +97,28 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             }))
         },
     )?;
+    let mut cuboid = NodeSpec::new(
+        "geo.box",
+        "a closed box mesh, 12 triangles with outward normals (tables, steps, colliders)",
+    )
+    .output("mesh", "mesh", "the box")
+    .param(ParamSpec::vec3("center", [0.0; 3]).unit("m").doc("centre"));
+    for (name, doc) in [
+        ("width", "extent along x"),
+        ("height", "extent along y"),
+        ("depth", "extent along z"),
+    ] {
+        cuboid = cuboid.param(ParamSpec::float(name, 1.0).gt(0.0).unit("m").doc(doc));
+    }
+    r.register(cuboid, |_| {
+        Ok(Kernel::from_fn(|cx| {
+            let p = cx.params();
+            let size = [p.f64("width")?, p.f64("height")?, p.f64("depth")?];
+            let m = weft_scene::procedural::cuboid(p.vec3("center")?, size);
+            cx.set("mesh", Value::new(m));
+            Ok(())
+        }))
+    })?;
     r.register(
         NodeSpec::new("geo.sphere", "a UV sphere mesh (heads, colliders, display)")
             .output("mesh", "mesh", "the sphere")

@@ -108,5 +108,6 @@ pub(crate) fn contact_stats_json(c: &weft_sim::ContactFrameStats) -> serde_json:
         "max_penetration": c.max_penetration,
         "max_residual": c.max_residual,
         "detection_seconds": c.detection_seconds,
+        "admm_seconds": c.admm_seconds,
     })
 }
