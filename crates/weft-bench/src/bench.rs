@@ -13,7 +13,8 @@ use weft_graph::{Context, Graph, Registry, load_str};
 /// Arguments of `weft bench`.
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {
-    /// Suite to run: `graph` (engine overhead), `solid` (cloth and hair solver), `fluid`
+    /// Suite to run: `graph` (engine overhead), `solid` (cloth and hair solver), `contact`
+    /// (a cloth draped on a sphere: detection, ADMM and Newton per step), `fluid`
     /// (pressure solve against memory bandwidth), or a sweep: `accuracy` (solid integrators
     /// over step, stiffness and Newton tolerance: error against step and wall time, stability
     /// maps), `convergence` (verification scenes under refinement, with fitted orders) or
@@ -198,6 +199,13 @@ pub fn run(reg: &Arc<Registry>, a: BenchArgs) -> ExitCode {
                 return ExitCode::from(1);
             }
         },
+        "contact" => match crate::bench_contact::suite(a.quick) {
+            Ok(r) => r,
+            Err(e) => {
+                eprintln!("error: {e}");
+                return ExitCode::from(1);
+            }
+        },
         "fluid" => match crate::bench_fluid::suite(a.quick) {
             Ok(r) => r,
             Err(e) => {
@@ -219,7 +227,7 @@ pub fn run(reg: &Arc<Registry>, a: BenchArgs) -> ExitCode {
         }
         other => {
             eprintln!(
-                "error: unknown bench suite '{other}' (suites: graph, solid, fluid, accuracy, convergence, coupling)"
+                "error: unknown bench suite '{other}' (suites: graph, solid, contact, fluid, accuracy, convergence, coupling)"
             );
             return ExitCode::from(2);
         }

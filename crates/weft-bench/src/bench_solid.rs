@@ -40,18 +40,7 @@ fn run(scene: Vec<SceneElement>, frames: i64) -> Result<Measured, String> {
     };
     let compiled = Arc::new(compile(&scene, &tree).map_err(|e| e.to_string())?);
     let vertices = compiled.state.x.len();
-    let settings = StepperSettings {
-        substeps: 1,
-        max_retries: 4,
-        max_bytes: Some(weft_graph::memory::available()),
-        contact_iterations: 200,
-        solver: Settings {
-            tolerance: 1e-4,
-            max_iterations: 200,
-            ..Settings::default()
-        },
-    };
-    let mut stepper = SolidStepper::new(compiled, settings).map_err(|e| e.to_string())?;
+    let mut stepper = SolidStepper::new(compiled, one_step_a_frame()).map_err(|e| e.to_string())?;
     let mut state = stepper.initial_state(&scene);
     let (mut steps, mut its, mut asm, mut fac, mut sol) = (0usize, 0usize, 0.0, 0.0, 0.0);
     let t = Instant::now();
@@ -75,6 +64,22 @@ fn run(scene: Vec<SceneElement>, frames: i64) -> Result<Measured, String> {
         factor: fac * 1e3 / its as f64,
         solve: sol * 1e3 / its as f64,
     })
+}
+
+/// The benchmarks' solver settings: one step a frame, Newton (and ADMM) to 1e-4 m/s as in
+/// the examples, within the machine's memory.
+pub(crate) fn one_step_a_frame() -> StepperSettings {
+    StepperSettings {
+        substeps: 1,
+        max_retries: 4,
+        max_bytes: Some(weft_graph::memory::available()),
+        contact_iterations: 200,
+        solver: Settings {
+            tolerance: 1e-4,
+            max_iterations: 200,
+            ..Settings::default()
+        },
+    }
 }
 
 fn cloth(n: usize) -> Vec<SceneElement> {

@@ -1,7 +1,7 @@
 //! `weft-bench`: the measurements behind `weft bench` and BENCHMARKS.md.
 //!
 //! Suites: `graph` (the engine's own overhead), `solid` (cloth and hair solver cost and
-//! scaling), `fluid` (the pressure solve against memory bandwidth), and three sweeps of
+//! scaling), `contact` (contacts with colliders: the drape's step split), `fluid` (the pressure solve against memory bandwidth), and three sweeps of
 //! verification scenes with known answers, each writing every run to CSV and JSON and
 //! drawing charts (PNG, SVG): `accuracy` (solid integrators over step, stiffness and Newton
 //! tolerance), `convergence` (scenes under refinement, with fitted orders) and `coupling`
@@ -14,6 +14,7 @@
 
 mod bench;
 mod bench_accuracy;
+mod bench_contact;
 mod bench_convergence;
 mod bench_coupling;
 mod bench_fluid;

@@ -29,6 +29,8 @@ pub struct ContactFrameStats {
     pub max_residual: f64,
     /// Seconds finding contacts (detection and exact checks).
     pub detection_seconds: f64,
+    /// Seconds in the ADMM loops (their solves, contact projections and refactorizations).
+    pub admm_seconds: f64,
 }
 
 /// The contact machinery of a compiled scene that has contact pairs: the detector and the
@@ -114,6 +116,7 @@ impl Contacts {
                 },
             )?;
             cs.admm_iterations += contact.admm_iterations;
+            cs.admm_seconds += contact.admm_seconds;
             let t = Instant::now();
             let (added, penetration) = self.detector.check(
                 setup,

@@ -60,6 +60,8 @@ pub struct ContactStats {
     pub admm_iterations: usize,
     /// Refactorizations made to rebalance ρ between ADMM's residuals.
     pub refactorizations: usize,
+    /// Seconds in the ADMM loops (their solves, contact projections and refactorizations).
+    pub admm_seconds: f64,
     /// The largest distance from Coulomb's law at the end (`contact::residual`, as a
     /// velocity: impulse residuals divided by ρ).
     pub max_residual: f64,
@@ -174,6 +176,7 @@ impl Integrator {
             }
             self.factor(&mut stats, 0.0)?;
             let mut admm_converged = false;
+            let admm_start = std::time::Instant::now();
             for round in 0..max_admm.max(1) {
                 // A long ADMM (contact_iterations is the user's) still answers a stop.
                 if round % 16 == 15 && self.should_stop() {
@@ -239,6 +242,7 @@ impl Integrator {
                     }
                 }
             }
+            cstats.admm_seconds += admm_start.elapsed().as_secs_f64();
             // Backtracking (Armijo) on the primal objective at the last primal step's targets,
             // whose Newton direction delta is: it descends (the factored matrix is SPD).
             let phi = |s: &Self, x: &[Vector3<f64>]| {
