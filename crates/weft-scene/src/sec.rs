@@ -455,6 +455,9 @@ pub struct CollisionGroup {
     pub colliders: Members,
     /// Vertex–face: every vertex of a member against the colliders' triangles (default on).
     pub vertex_face: bool,
+    /// Segment–face: every hair segment against the colliders' triangles, so a strand
+    /// touches between its vertices too (default on; cloth has no segments).
+    pub segment_face: bool,
 }
 
 impl Default for CollisionGroup {
@@ -463,6 +466,7 @@ impl Default for CollisionGroup {
             members: Members::All,
             colliders: Members::All,
             vertex_face: true,
+            segment_face: true,
         }
     }
 }

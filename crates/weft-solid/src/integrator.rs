@@ -21,7 +21,7 @@ mod contacts;
 use crate::energy::Local;
 pub use crate::settings::{Method, Settings, StepError, StepStats, StopCheck};
 use crate::system::{SolidSystem, State};
-pub use contacts::{ContactSet, ContactStats, VertexContact};
+pub use contacts::{CONTACT_VERTICES, Contact, ContactSet, ContactStats};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::perm::PermRef;
 use faer::sparse::linalg::amd;

@@ -180,6 +180,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             .param(ParamSpec::string("members", "all").doc("the cloth and hair elements that collide: all, or names separated by commas"))
             .param(ParamSpec::string("colliders", "all").doc("the collider elements they collide with: all, or names separated by commas"))
             .param(ParamSpec::bool("vertex_face", true).doc("detect every member vertex against the colliders' triangles"))
+            .param(ParamSpec::bool("segment_face", true).doc("detect every member hair segment against the colliders' triangles (a strand touches between its vertices too)"))
             .param(ParamSpec::float("strength", CollisionResponse::default().strength).gt(0.0).le(1.0).doc("fraction of an existing penetration resolved per step (a start inside a collider separates over steps)"))
             .param(ParamSpec::float("damping", CollisionResponse::default().damping).ge(0.0).unit("1/s").doc("damping of the normal relative velocity at a contact")),
         |p| {
@@ -198,6 +199,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                     members: Members::parse(p.str("members")?),
                     colliders: Members::parse(p.str("colliders")?),
                     vertex_face: p.bool("vertex_face")?,
+                    segment_face: p.bool("segment_face")?,
                 });
                 e.secs.insert(CollisionResponse {
                     strength: p.f64("strength")?,

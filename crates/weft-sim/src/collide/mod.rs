@@ -29,7 +29,7 @@ use crate::behavior::{bad, non_negative, positive};
 use crate::builder::SystemBuilder;
 use crate::error::SimError;
 use bvh::TriangleTree;
-use geometry::{closest_on_triangle, frame, segment_crosses_triangle};
+use geometry::{closest_on_triangle, closest_segment_triangle, frame, segment_crosses_triangle};
 use nalgebra::Vector3;
 use std::collections::{BTreeMap, BTreeSet};
 use std::ops::Range;
@@ -37,7 +37,7 @@ use weft_scene::{
     Collider, CollisionGroup, CollisionResponse, ElementKind, Geometry, Members, Rod, SceneElement,
     Transform,
 };
-use weft_solid::integrator::VertexContact;
+use weft_solid::integrator::Contact;
 
 type V = Vector3<f64>;
 
@@ -73,6 +73,10 @@ pub struct ContactPair {
     pub strength: f64,
     /// Damping of the normal relative velocity [1/s].
     pub damping: f64,
+    /// Vertex–face detection on (the group's `vertex_face`).
+    pub vertices: bool,
+    /// Segment–face detection on (the group's `segment_face`; hair only).
+    pub segments: bool,
 }
 
 /// Every collider and contact pair of a scene, and each simulated vertex's contact area.
@@ -85,6 +89,8 @@ pub struct CollisionSetup {
     /// Contact area of each global vertex [m²] (cloth: a third of its triangles' areas; hair:
     /// half its segments' lengths × the fibre's diameter).
     pub areas: Vec<f64>,
+    /// Per scene element, its hair segments as global vertex pairs (empty for the rest).
+    pub segments: Vec<Vec<[u32; 2]>>,
 }
 
 fn check_collider_sec(name: &str, c: &Collider) -> Result<(), SimError> {
@@ -178,7 +184,7 @@ impl crate::Behavior for Collision {
                     }
                 }
             }
-            if !group.vertex_face {
+            if !group.vertex_face && !group.segment_face {
                 b.warn(format!(
                     "collision element '{}' has no detection method on: it makes no contacts",
                     g.name
@@ -237,11 +243,14 @@ impl crate::Behavior for Collision {
                         cohesion,
                         strength: response.strength,
                         damping: response.damping,
+                        vertices: group.vertex_face,
+                        segments: group.segment_face && scene[m].kind == ElementKind::Hair,
                     });
                 }
             }
         }
         setup.areas = contact_areas(scene, b);
+        setup.segments = hair_segments(scene, b);
         b.collisions = Some(setup);
         Ok(())
     }
@@ -350,6 +359,29 @@ fn contact_areas(scene: &[SceneElement], b: &SystemBuilder) -> Vec<f64> {
     areas
 }
 
+fn hair_segments(scene: &[SceneElement], b: &SystemBuilder) -> Vec<Vec<[u32; 2]>> {
+    scene
+        .iter()
+        .enumerate()
+        .map(|(ei, e)| {
+            let (Some(r), Geometry::Curves(c)) =
+                (b.ranges.get(ei).cloned().flatten(), &*e.geometry)
+            else {
+                return Vec::new();
+            };
+            (0..c.len())
+                .flat_map(|k| {
+                    let cr = c.range(k);
+                    (cr.start..cr.end.saturating_sub(1))
+                        .filter(|&v| v + 1 < r.len())
+                        .map(|v| [(r.start + v) as u32, (r.start + v + 1) as u32])
+                        .collect::<Vec<_>>()
+                })
+                .collect()
+        })
+        .collect()
+}
+
 /// A collider during a frame: its mesh in its own frame and the tree over it.
 struct Live {
     local: Vec<V>,
@@ -364,8 +396,19 @@ impl Live {
     }
 }
 
-/// Where a contact came from: (vertex, collider, triangle).
-type Key = (u32, u32, u32);
+/// Where a contact came from: (vertex, collider, triangle, [`VERTEX`]) for a vertex's,
+/// (its first vertex, collider, triangle, [`bin`] of the point) for a segment's.
+type Key = (u32, u32, u32, u32);
+
+/// The last field of a vertex contact's [`Key`].
+const VERTEX: u32 = u32::MAX;
+
+/// Which 1024th of a segment the point at `s` is in: a contact holds its own point, and a
+/// point of the segment beside it can still end too close (the segment turns over the
+/// step), so only a contact at nearly the same point counts as one already there.
+fn bin(s: f64) -> u32 {
+    (s * 1024.0).clamp(0.0, 1023.0) as u32
+}
 
 /// Finds contacts each step (see the module doc). Holds no simulation state: the colliders'
 /// shapes and transforms come from the scene each frame.
@@ -465,47 +508,76 @@ impl Detector {
         x0: &[V],
         v0: &[V],
         (s0, s1, h): (f64, f64, f64),
-        out: &mut Vec<VertexContact>,
+        out: &mut Vec<Contact>,
     ) {
         out.clear();
         self.keys.clear();
         let (candidates, keys) = (&mut self.candidates, &mut self.keys);
-        let ends = |i: usize| x0[i] + h * v0[i];
-        each_vertex(
+        let pass = Pass {
             setup,
             ranges,
             pinned,
-            &self.live,
+            live: &self.live,
             x0,
-            ends,
-            (s0, s1),
-            |at| {
-                let (pair, c, live, i, a, b) =
-                    (at.pair, at.collider, at.live, at.vertex, at.a, at.b);
-                let reach = 1.25 * pair.distance + (b - a).norm();
-                let pad = V::repeat(reach);
-                candidates.clear();
-                live.tree.query(&(a - pad), &(a + pad), candidates);
-                // The closest triangle within reach (ties: the lower index), only: a neighbour's
-                // edge near the vertex would make a tilted plane through that edge (measured: a
-                // patch sliding across a coplanar pair of triangles lost 40 % of a frame's
-                // acceleration to them); the exact check adds the triangles a path really meets
-                // (a concave corner's second face) instead.
-                let mut best: Option<(f64, u32, [f64; 3])> = None;
-                for &t in candidates.iter() {
-                    let tri = c.triangles[t as usize].map(|v| live.local[v as usize]);
-                    let w = closest_on_triangle(&a, &tri[0], &tri[1], &tri[2]);
-                    let d = (a - (w[0] * tri[0] + w[1] * tri[1] + w[2] * tri[2])).norm();
-                    if d <= reach && best.is_none_or(|(bd, bt, _)| (d, t) < (bd, bt)) {
-                        best = Some((d, t, w));
-                    }
+            s: (s0, s1),
+        };
+        let ends = |i: usize| x0[i] + h * v0[i];
+        pass.vertices(ends, |at| {
+            let (pair, c, live, i, a, b) = (at.pair, at.collider, at.live, at.vertex, at.a, at.b);
+            let reach = 1.25 * pair.distance + (b - a).norm();
+            let pad = V::repeat(reach);
+            candidates.clear();
+            live.tree.query(&(a - pad), &(a + pad), candidates);
+            // The closest triangle within reach (ties: the lower index), only: a neighbour's
+            // edge near the vertex would make a tilted plane through that edge (measured: a
+            // patch sliding across a coplanar pair of triangles lost 40 % of a frame's
+            // acceleration to them); the exact check adds the triangles a path really meets
+            // (a concave corner's second face) instead.
+            if let Some((d, t, w)) = nearest(c, live, candidates, &a)
+                && d <= reach
+            {
+                keys.insert((i as u32, pair.collider as u32, t, VERTEX));
+                out.push(contact(setup, &at, t, w, x0, h));
+            }
+        });
+        // Hair segments: the closest triangle within reach whose closest point is inside the
+        // segment (between its vertices, whose own contacts hold the ends): a strand lying
+        // over a curved collider touches it between its vertices (a 25 mm segment on a
+        // 0.1 m head dips 0.8 mm into it with vertex contacts alone).
+        pass.segments(ends, |sg| {
+            let ([a0, a1], [b0, b1]) = (sg.a, sg.b);
+            let travel = (b0 - a0).norm().max((b1 - a1).norm());
+            let reach = 1.25 * sg.pair.distance + travel;
+            let pad = V::repeat(reach);
+            candidates.clear();
+            sg.live
+                .tree
+                .query(&(a0.inf(&a1) - pad), &(a0.sup(&a1) + pad), candidates);
+            let mut best: Option<(f64, u32, f64, [f64; 3])> = None;
+            for &t in candidates.iter() {
+                let tri = sg.collider.triangles[t as usize].map(|v| sg.live.local[v as usize]);
+                let (s, w, d) = closest_segment_triangle(&a0, &a1, &tri[0], &tri[1], &tri[2]);
+                if d <= reach
+                    && inside_segment(s)
+                    && best.is_none_or(|(bd, bt, _, _)| (d, t) < (bd, bt))
+                {
+                    best = Some((d, t, s, w));
                 }
-                if let Some((_, t, w)) = best {
-                    keys.insert((i as u32, pair.collider as u32, t));
-                    out.push(contact(setup, &at, t, w, x0, h));
+            }
+            if let Some((_, _, s, _)) = best
+                && !rooted(&sg, pinned, candidates)
+            {
+                // The plane is the point's own, from its nearest triangle (as a vertex's
+                // is): the segment's closest triangle need not be the point's, and its
+                // face would misjudge inside and outside.
+                let p = (1.0 - s) * a0 + s * a1;
+                if let Some((_, tp, w)) = nearest(sg.collider, sg.live, candidates, &p) {
+                    let first = sg.vertices[0] as u32;
+                    keys.insert((first, sg.pair.collider as u32, tp, bin(s)));
+                    out.push(segment_contact(&sg, s, tp, w, x0, h));
                 }
-            },
-        );
+            }
+        });
     }
 
     /// The exact check after a step from `x0` to `x1`: every vertex's path (in each
@@ -522,19 +594,21 @@ impl Detector {
         x0: &[V],
         x1: &[V],
         (s0, s1, h): (f64, f64, f64),
-        contacts: &mut Vec<VertexContact>,
+        contacts: &mut Vec<Contact>,
     ) -> (usize, f64) {
         let mut added = 0;
         let mut deepest = 0.0f64;
         let (candidates, keys) = (&mut self.candidates, &mut self.keys);
-        each_vertex(
+        let pass = Pass {
             setup,
             ranges,
             pinned,
-            &self.live,
+            live: &self.live,
             x0,
+            s: (s0, s1),
+        };
+        pass.vertices(
             |i| x1[i],
-            (s0, s1),
             |at| {
                 let (pair, c, live, i, a, b) =
                     (at.pair, at.collider, at.live, at.vertex, at.a, at.b);
@@ -548,7 +622,7 @@ impl Detector {
                     let wb = closest_on_triangle(&b, &tri[0], &tri[1], &tri[2]);
                     let (_, signed) = side(c, live, t, &wb, &b, &b);
                     let clearance = signed - pair.distance;
-                    if !keys.insert((i as u32, pair.collider as u32, t)) {
+                    if !keys.insert((i as u32, pair.collider as u32, t, VERTEX)) {
                         // Its contact holds it (to the solver's tolerance): measure only.
                         deepest = deepest.max(-clearance);
                         continue;
@@ -562,8 +636,50 @@ impl Detector {
                         let depth = if crossed { pair.distance } else { -clearance };
                         deepest = deepest.max(depth);
                     } else {
-                        keys.remove(&(i as u32, pair.collider as u32, t));
+                        keys.remove(&(i as u32, pair.collider as u32, t, VERTEX));
                     }
+                }
+            },
+        );
+        // Hair segments at the step's end against the triangles near their sweep: one that
+        // ended closer than the distance kept (or through a triangle) at a point inside it
+        // gets a contact there. A segment that swept across a collider's edge and ended
+        // clear of it is not seen (edge–edge continuous detection is issue 14's).
+        pass.segments(
+            |i| x1[i],
+            |sg| {
+                let ([a0, a1], [b0, b1]) = (sg.a, sg.b);
+                let pad = V::repeat(sg.pair.distance);
+                let (lo, hi) = (a0.inf(&a1).inf(&b0).inf(&b1), a0.sup(&a1).sup(&b0).sup(&b1));
+                candidates.clear();
+                sg.live.tree.query(&(lo - pad), &(hi + pad), candidates);
+                candidates.sort_unstable();
+                if rooted(&sg, pinned, candidates) {
+                    return;
+                }
+                // The segment's least clearance at the end, over the triangles near it.
+                let mut worst: Option<(f64, u32, f64)> = None;
+                for &t in candidates.iter() {
+                    let tri = sg.collider.triangles[t as usize].map(|v| sg.live.local[v as usize]);
+                    let (s, _, d) = closest_segment_triangle(&b0, &b1, &tri[0], &tri[1], &tri[2]);
+                    let clearance = d - sg.pair.distance;
+                    if worst.is_none_or(|(c, _, _)| clearance < c) {
+                        worst = Some((clearance, t, s));
+                    }
+                }
+                let Some((clearance, t, s)) = worst.filter(|&(_, _, s)| inside_segment(s)) else {
+                    return; // clear, or closest at an end: the vertices' own check
+                };
+                deepest = deepest.max(-clearance);
+                // A contact of the point that ended too close with that triangle (its plane
+                // through the point's closest at the start), unless the segment has one there.
+                let key = (sg.vertices[0] as u32, sg.pair.collider as u32, t, bin(s));
+                if clearance < -1e-3 * sg.pair.distance && keys.insert(key) {
+                    let tri = sg.collider.triangles[t as usize].map(|v| sg.live.local[v as usize]);
+                    let start = (1.0 - s) * a0 + s * a1;
+                    let w = closest_on_triangle(&start, &tri[0], &tri[1], &tri[2]);
+                    contacts.push(segment_contact(&sg, s, t, w, x0, h));
+                    added += 1;
                 }
             },
         );
@@ -583,35 +699,66 @@ struct At<'a> {
     s: (f64, f64),
 }
 
-/// Calls `f` for every free vertex of every pair, in pair then vertex order, with its start
-/// `x0` and end `end(i)` in the collider's frame at fractions `s0` and `s1`.
-#[allow(clippy::too_many_arguments)]
-fn each_vertex(
-    setup: &CollisionSetup,
-    ranges: &[Option<Range<usize>>],
-    pinned: &[bool],
-    live: &[Live],
-    x0: &[V],
-    end: impl Fn(usize) -> V,
-    (s0, s1): (f64, f64),
-    mut f: impl FnMut(At<'_>),
-) {
-    for pair in &setup.pairs {
-        let Some(r) = ranges.get(pair.element).cloned().flatten() else {
-            continue;
-        };
-        let l = &live[pair.collider];
-        let (t0, t1) = (l.at(s0), l.at(s1));
-        for i in r.filter(|&i| !pinned[i]) {
-            f(At {
-                pair,
-                collider: &setup.colliders[pair.collider],
-                live: l,
-                vertex: i,
-                a: inverse(t0, &x0[i]),
-                b: inverse(t1, &end(i)),
-                s: (s0, s1),
-            });
+/// What a detection pass walks: the setup, the elements' vertex ranges, which vertices are
+/// held, the colliders during the frame, the step's start positions and its fractions.
+struct Pass<'a> {
+    setup: &'a CollisionSetup,
+    ranges: &'a [Option<Range<usize>>],
+    pinned: &'a [bool],
+    live: &'a [Live],
+    x0: &'a [V],
+    s: (f64, f64),
+}
+
+impl Pass<'_> {
+    /// Calls `f` for every free vertex of every pair with vertex–face detection, in pair then
+    /// vertex order, with its start and its end `end(i)` in the collider's frame.
+    fn vertices(&self, end: impl Fn(usize) -> V, mut f: impl FnMut(At<'_>)) {
+        for pair in self.setup.pairs.iter().filter(|p| p.vertices) {
+            let Some(r) = self.ranges.get(pair.element).cloned().flatten() else {
+                continue;
+            };
+            let l = &self.live[pair.collider];
+            let (t0, t1) = (l.at(self.s.0), l.at(self.s.1));
+            for i in r.filter(|&i| !self.pinned[i]) {
+                f(At {
+                    pair,
+                    collider: &self.setup.colliders[pair.collider],
+                    live: l,
+                    vertex: i,
+                    a: inverse(t0, &self.x0[i]),
+                    b: inverse(t1, &end(i)),
+                    s: self.s,
+                });
+            }
+        }
+    }
+
+    /// Calls `f` for every hair segment of every pair with segment–face detection whose
+    /// vertices are not both held, in pair then segment order, as [`Pass::vertices`] does.
+    fn segments(&self, end: impl Fn(usize) -> V, mut f: impl FnMut(SegmentAt<'_>)) {
+        for pair in self.setup.pairs.iter().filter(|p| p.segments) {
+            if self.ranges.get(pair.element).cloned().flatten().is_none() {
+                continue;
+            }
+            let l = &self.live[pair.collider];
+            let (t0, t1) = (l.at(self.s.0), l.at(self.s.1));
+            for seg in self.setup.segments.get(pair.element).into_iter().flatten() {
+                let [i, j] = seg.map(|v| v as usize);
+                if self.pinned[i] && self.pinned[j] {
+                    continue;
+                }
+                let (x0, e) = (self.x0, &end);
+                f(SegmentAt {
+                    pair,
+                    collider: &self.setup.colliders[pair.collider],
+                    live: l,
+                    vertices: [i, j],
+                    a: [inverse(t0, &x0[i]), inverse(t0, &x0[j])],
+                    b: [inverse(t1, &e(i)), inverse(t1, &e(j))],
+                    s: self.s,
+                });
+            }
         }
     }
 }
@@ -659,18 +806,52 @@ fn side(c: &ColliderSetup, live: &Live, t: u32, w: &[f64; 3], a: &V, b: &V) -> (
 
 /// The contact of a vertex with triangle `t` (closest point weights `w` at the step's start
 /// position, local): the plane through the closest point, carried by the collider.
-fn contact(
-    setup: &CollisionSetup,
-    at: &At<'_>,
+fn contact(setup: &CollisionSetup, at: &At<'_>, t: u32, w: [f64; 3], x0: &[V], h: f64) -> Contact {
+    let i = at.vertex;
+    let (pair, c, live) = (at.pair, at.collider, at.live);
+    Contact {
+        cohesion: pair.cohesion * setup.areas[i] * h,
+        ..plane(
+            pair,
+            c,
+            live,
+            at.s,
+            t,
+            w,
+            (&at.a, &at.b, &x0[i]),
+            h,
+            &[(i as u32, 1.0)],
+            false,
+        )
+    }
+}
+
+/// The contact of a point of the solid with triangle `t` (closest point weights `w` at the
+/// step's start): the plane through the closest point, carried by the collider. The point is
+/// at `a` (local) and `x0` (world) at the step's start, heading to `b` (local), and is
+/// `points` (vertices and weights); no cohesion (the caller's). `outside`: the point is known
+/// to start outside (a segment's, kept out by the last step), so the normal is from the
+/// triangle to it even where it is behind the triangle's plane (around a convex edge).
+#[allow(clippy::too_many_arguments)]
+fn plane(
+    pair: &ContactPair,
+    c: &ColliderSetup,
+    live: &Live,
+    (s0, s1): (f64, f64),
     t: u32,
     w: [f64; 3],
-    x0: &[V],
+    (a, b, x0): (&V, &V, &V),
     h: f64,
-) -> VertexContact {
-    let (pair, c, live, i, (s0, s1)) = (at.pair, at.collider, at.live, at.vertex, at.s);
-    let (n_local, _) = side(c, live, t, &w, &at.a, &at.b);
+    points: &[(u32, f64)],
+    outside: bool,
+) -> Contact {
+    let (n_local, _) = side(c, live, t, &w, a, b);
     let tri = c.triangles[t as usize].map(|v| live.local[v as usize]);
     let q = w[0] * tri[0] + w[1] * tri[1] + w[2] * tri[2];
+    let n_local = match (a - q).try_normalize(1e-12 * a.amax().max(1.0)) {
+        Some(n) if outside => n,
+        _ => n_local,
+    };
     let place = |s: f64, p: &V| match live.at(s) {
         Some(t) => t.transform_point(&(*p).into()).coords,
         None => *p,
@@ -681,17 +862,88 @@ fn contact(
         None => n_local,
     };
     // n·(x_end − q_end) ≥ distance ⟺ n·(v − v_c) ≥ −gap/h with these (docs/contacts.md).
-    let mut gap = n.dot(&(x0[i] - q0)) - pair.distance;
+    let mut gap = n.dot(&(x0 - q0)) - pair.distance;
     if gap < 0.0 {
         gap *= pair.strength;
     }
-    VertexContact {
-        vertex: i as u32,
+    Contact {
         frame: frame(&n),
         gap,
         velocity: (q1 - q0) / h,
         friction: pair.friction,
-        cohesion: pair.cohesion * setup.areas[i] * h,
         damping: pair.damping,
+        ..Contact::points(points)
     }
+}
+
+/// A hair segment of a contact pair during a step: the pair, its collider, the segment's
+/// vertices, where they are in the collider's frame at the step's start (`a`) and end (`b`),
+/// and the step's fractions.
+struct SegmentAt<'a> {
+    pair: &'a ContactPair,
+    collider: &'a ColliderSetup,
+    live: &'a Live,
+    vertices: [usize; 2],
+    a: [V; 2],
+    b: [V; 2],
+    s: (f64, f64),
+}
+
+/// The triangle of `candidates` nearest to `p` (ties: the lower index): (distance, triangle,
+/// closest point weights).
+fn nearest(
+    c: &ColliderSetup,
+    live: &Live,
+    candidates: &[u32],
+    p: &V,
+) -> Option<(f64, u32, [f64; 3])> {
+    let mut best: Option<(f64, u32, [f64; 3])> = None;
+    for &t in candidates {
+        let tri = c.triangles[t as usize].map(|v| live.local[v as usize]);
+        let w = closest_on_triangle(p, &tri[0], &tri[1], &tri[2]);
+        let d = (p - (w[0] * tri[0] + w[1] * tri[1] + w[2] * tri[2])).norm();
+        if best.is_none_or(|(bd, bt, _)| (d, t) < (bd, bt)) {
+            best = Some((d, t, w));
+        }
+    }
+    best
+}
+
+/// A segment with a held end that starts within the distance kept of a triangle of
+/// `candidates`: a strand rooted in the collider's skin (a scalp). Its held end is where the
+/// groom put it, and a point beside it cannot be moved out (it follows the held end), so the
+/// segment gets no contact of its own, as held vertices get none; its free vertex's does.
+fn rooted(sg: &SegmentAt<'_>, pinned: &[bool], candidates: &[u32]) -> bool {
+    (0..2).any(|k| {
+        pinned[sg.vertices[k]]
+            && nearest(sg.collider, sg.live, candidates, &sg.a[k])
+                .is_some_and(|(d, _, _)| d < sg.pair.distance)
+    })
+}
+
+/// Where along a segment a contact of its own goes: away from its ends, which vertex–face
+/// contacts hold (a thousandth of the segment).
+fn inside_segment(s: f64) -> bool {
+    (1e-3..=1.0 - 1e-3).contains(&s)
+}
+
+/// The contact of segment `sg` at `s` along it with triangle `t` (closest point weights `w`
+/// of that point at the step's start).
+fn segment_contact(sg: &SegmentAt<'_>, s: f64, t: u32, w: [f64; 3], x0: &[V], h: f64) -> Contact {
+    let [i, j] = sg.vertices;
+    let at = |p: &[V; 2]| (1.0 - s) * p[0] + s * p[1];
+    let (a, b, x) = (at(&sg.a), at(&sg.b), (1.0 - s) * x0[i] + s * x0[j]);
+    let points = [(i as u32, 1.0 - s), (j as u32, s)];
+    plane(
+        sg.pair,
+        sg.collider,
+        sg.live,
+        sg.s,
+        t,
+        w,
+        (&a, &b, &x),
+        h,
+        &points,
+        true,
+    )
 }

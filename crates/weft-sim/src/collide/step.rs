@@ -9,7 +9,7 @@ use nalgebra::Vector3;
 use std::sync::Arc;
 use std::time::Instant;
 use weft_scene::{SceneElement, Transform};
-use weft_solid::integrator::{ContactSet, VertexContact};
+use weft_solid::integrator::{Contact, ContactSet};
 use weft_solid::{Integrator, Settings, SolidSystem, State, StepError, StepStats};
 
 /// What contacts cost and did over a frame (or a coupling iteration).
@@ -39,7 +39,7 @@ pub struct ContactFrameStats {
 pub struct Contacts {
     compiled: Arc<Compiled>,
     detector: Detector,
-    contacts: Vec<VertexContact>,
+    contacts: Vec<Contact>,
     /// ADMM iterations allowed per Newton iteration.
     pub max_admm: usize,
 }

@@ -2,13 +2,15 @@
 //! (`weft-sim`'s collision detection hands it the contacts; the derivations are in
 //! `docs/contacts.md`).
 //!
-//! ADMM on the split z_c = H_c v, H_c v = R_c(v_i − v_c) a contact's relative velocity in its
-//! frame. Newton outside: assemble the incremental potential's Hessian at x, add ρ_c/h² I on
-//! each contact vertex (RᵀR = I, so the pattern is unchanged) and factor once. ADMM inside on
-//! that Newton model: each primal step is one solve with the same factor (only the right-hand
-//! side changes), each contact step the closed-form [`solve_local`]. The stationarity of the
-//! primal objective E(x) + Σ ρ_c/2 ‖H_c v − z_c − r_c/ρ_c‖² at H_c v = z_c is ∇E = Σ H_cᵀ r_c/h,
-//! the momentum balance with the colliders' impulses r_c [N·s].
+//! ADMM on the split z_c = H_c v, H_c v = R_c(Σⱼ wⱼ vⱼ − v_c) the relative velocity of a
+//! contact's point (a vertex, or a point between vertices) in its frame. Newton outside:
+//! assemble the incremental potential's Hessian at x, add ρ_c/h² (w wᵀ ⊗ I) on the contact's
+//! vertex blocks (RᵀR = I; its vertices share an element, so the pattern is unchanged) and
+//! factor once. ADMM inside on that Newton model: each primal step is one solve with the same
+//! factor (only the right-hand side changes), each contact step the closed-form
+//! [`solve_local`]. The stationarity of the primal objective E(x) + Σ ρ_c/2 ‖H_c v − z_c −
+//! r_c/ρ_c‖² at H_c v = z_c is ∇E = Σ H_cᵀ r_c/h, the momentum balance with the colliders'
+//! impulses r_c [N·s], shared by the point's vertices in proportion to their weights.
 
 use super::{Integrator, Mode, NONE};
 use crate::contact::{residual, solve_local};
@@ -16,11 +18,21 @@ use crate::settings::{Settings, StepError, StepStats};
 use crate::system::{SolidSystem, State};
 use nalgebra::{Matrix3, Vector3};
 
-/// A free vertex touching a kinematic collider.
+/// Most vertices a contact's point is made of (a triangle's three and a point: issue 14's
+/// point–triangle and edge–edge contacts; a collider contact uses one or two).
+pub const CONTACT_VERTICES: usize = 4;
+
+/// A point of a solid touching a kinematic collider. The point is Σ wⱼ xⱼ over the contact's
+/// vertices (a vertex: one weight 1; a point on a hair segment: (1 − s, s)); an entry of
+/// weight 0 is unused. Every pair of the contact's moving vertices must share an element of
+/// the system (its matrix has their block), else the step fails with
+/// [`StepError::Factorization`].
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct VertexContact {
-    /// The vertex.
-    pub vertex: u32,
+pub struct Contact {
+    /// The vertices the point is made of.
+    pub vertices: [u32; CONTACT_VERTICES],
+    /// Their weights (unused entries 0).
+    pub weights: [f64; CONTACT_VERTICES],
     /// Rows n, t₁, t₂: the contact frame, n out of the collider (orthonormal).
     pub frame: Matrix3<f64>,
     /// Distance to the collider minus the thickness at the start of the step [m] (negative:
@@ -33,15 +45,72 @@ pub struct VertexContact {
     /// The most the collider may pull, as an impulse over the step [N·s] (cohesion).
     pub cohesion: f64,
     /// Damping of the normal relative velocity [1/s]: a force −c m (n·(v − v_c)) n on the
-    /// vertex over the step (implicit: ½ c m h (n·(v − v_c))² in the objective).
+    /// point over the step, m = Σ |wⱼ| mⱼ (implicit: ½ c m h (n·(v − v_c))² in the objective).
     pub damping: f64,
+}
+
+impl Contact {
+    /// A contact of vertex `v` alone, its other fields zero (set them).
+    pub fn vertex(v: u32) -> Self {
+        Self::points(&[(v, 1.0)])
+    }
+
+    /// A contact at Σ wⱼ x_vⱼ over `points` (at most [`CONTACT_VERTICES`]; the rest are
+    /// dropped), its other fields zero.
+    pub fn points(points: &[(u32, f64)]) -> Self {
+        let mut c = Contact {
+            vertices: [0; CONTACT_VERTICES],
+            weights: [0.0; CONTACT_VERTICES],
+            frame: Matrix3::identity(),
+            gap: 0.0,
+            velocity: Vector3::zeros(),
+            friction: 0.0,
+            cohesion: 0.0,
+            damping: 0.0,
+        };
+        for (k, &(v, w)) in points.iter().take(CONTACT_VERTICES).enumerate() {
+            c.vertices[k] = v;
+            c.weights[k] = w;
+        }
+        c
+    }
+
+    /// The point's velocity over a step from `x0` to `x` of `h`.
+    fn point_velocity(&self, x: &[Vector3<f64>], x0: &[Vector3<f64>], h: f64) -> Vector3<f64> {
+        let mut v = Vector3::zeros();
+        for (&i, &w) in self.vertices.iter().zip(&self.weights) {
+            if w != 0.0 {
+                v += w * (x[i as usize] - x0[i as usize]);
+            }
+        }
+        v / h
+    }
+}
+
+/// A contact as the ADMM sees it: its moving vertices and where their blocks are.
+struct Active<'a> {
+    c: &'a Contact,
+    /// (free index, weight) of the vertices that move.
+    free: [(usize, f64); CONTACT_VERTICES],
+    count: usize,
+    /// `base[p][q]`: the value index of entry (3 f_p, 3 f_q) less its column's start, so
+    /// entry (a, b) of that block is at `col_ptr[3 f_q + b] + base[p][q] + a`.
+    base: [[usize; CONTACT_VERTICES]; CONTACT_VERTICES],
+    /// Σ |wⱼ| mⱼ: the point's mass for its damping.
+    mass: f64,
+}
+
+impl Active<'_> {
+    fn free(&self) -> &[(usize, f64)] {
+        &self.free[..self.count]
+    }
 }
 
 /// The contacts of a step and how far their ADMM may go.
 #[derive(Clone, Copy, Debug)]
 pub struct ContactSet<'a> {
     /// The contacts.
-    pub contacts: &'a [VertexContact],
+    pub contacts: &'a [Contact],
     /// ADMM iterations allowed per Newton iteration.
     pub max_admm: usize,
     /// Impulses to start from, one per contact [N·s] in its frame (the last step's, matched
@@ -71,6 +140,82 @@ pub struct ContactStats {
 }
 
 impl Integrator {
+    /// The value index of entry (3 fa, 3 fb) less column 3 fb's start, when the pattern
+    /// holds the block of free vertices fa and fb (rows of a column are sorted).
+    fn block_base(&self, fa: usize, fb: usize) -> Option<usize> {
+        let (lo, hi) = (self.col_ptr[3 * fb], self.col_ptr[3 * fb + 1]);
+        self.row_idx[lo..hi].binary_search(&(3 * fa)).ok()
+    }
+
+    /// The contacts that move something, with their blocks; `index` maps each back to
+    /// `contacts`.
+    fn activate<'a>(
+        &self,
+        sys: &SolidSystem,
+        contacts: &'a [Contact],
+    ) -> Result<(Vec<usize>, Vec<Active<'a>>), StepError> {
+        let mut index = Vec::new();
+        let mut active = Vec::new();
+        for (k, c) in contacts.iter().enumerate() {
+            let mut a = Active {
+                c,
+                free: [(0, 0.0); CONTACT_VERTICES],
+                count: 0,
+                base: [[0; CONTACT_VERTICES]; CONTACT_VERTICES],
+                mass: 0.0,
+            };
+            let mut valid = true;
+            for (&v, &w) in c.vertices.iter().zip(&c.weights) {
+                if w == 0.0 {
+                    continue;
+                }
+                let v = v as usize;
+                if v >= self.n || !w.is_finite() {
+                    valid = false;
+                    break;
+                }
+                a.mass += w.abs() * sys.mass[v];
+                if self.free_of[v] != NONE {
+                    a.free[a.count] = (self.free_of[v] as usize, w);
+                    a.count += 1;
+                }
+            }
+            // Contacts on held vertices only have nothing to move.
+            if !valid || a.count == 0 {
+                continue;
+            }
+            for p in 0..a.count {
+                for q in 0..a.count {
+                    a.base[p][q] = self
+                        .block_base(a.free[p].0, a.free[q].0)
+                        .ok_or_else(|| {
+                            StepError::Factorization(format!(
+                                "contact {k}: its vertices {:?} share no element, so the system has no block for them",
+                                c.vertices
+                            ))
+                        })?;
+                }
+            }
+            index.push(k);
+            active.push(a);
+        }
+        Ok((index, active))
+    }
+
+    /// Adds `scale` × (w wᵀ ⊗ m) to the contact's blocks: m a 3×3 (by rows, a then b).
+    fn add_contact_blocks(&mut self, a: &Active<'_>, scale: f64, m: &Matrix3<f64>) {
+        for (p, &(_, wp)) in a.free().iter().enumerate() {
+            for (q, &(fq, wq)) in a.free().iter().enumerate() {
+                for bb in 0..3 {
+                    let col = self.col_ptr[3 * fq + bb] + a.base[p][q];
+                    for aa in 0..3 {
+                        self.values[col + aa] += scale * wp * wq * m[(aa, bb)];
+                    }
+                }
+            }
+        }
+    }
+
     /// [`Integrator::step`] with `set.contacts`: implicit Euler whose end-of-step velocities
     /// obey Signorini–Coulomb at every contact. ADMM stops when the split's primal and dual
     /// residuals are below `settings.tolerance` [m/s], within `set.max_admm` iterations a
@@ -93,24 +238,11 @@ impl Integrator {
         });
         let mut x = state.x.clone();
         self.predict(sys, state, &mut x, &target, guess, h);
-        // Contacts on held vertices have nothing to move; `index` maps back to `contacts`.
-        let index: Vec<usize> = (0..contacts.len())
-            .filter(|&k| {
-                let v = contacts[k].vertex as usize;
-                v < self.n && self.free_of[v] != NONE
-            })
-            .collect();
-        let active: Vec<(usize, &VertexContact)> = index
-            .iter()
-            .map(|&k| {
-                let c = &contacts[k];
-                (self.free_of[c.vertex as usize] as usize, c)
-            })
-            .collect();
-        // ρ_c = σ ρ̂_c: ρ̂_c the vertex's effective mass along the normal, h² nᵀ(M + h²K)ᵢᵢ n
-        // (a diagonal Delassus approximation, Daviet 2020), σ one scale for every contact,
-        // balanced between the ADMM residuals (Boyd et al. 2011, §3.4.1) at the cost of a
-        // refactorization whenever it changes.
+        let (index, active) = self.activate(sys, contacts)?;
+        // ρ_c = σ ρ̂_c: ρ̂_c the point's effective mass along the normal, h² / Σⱼ wⱼ²/dⱼ with
+        // dⱼ = nᵀ(M + h²K)ⱼⱼ n (a diagonal Delassus approximation, Daviet 2020), σ one scale
+        // for every contact, balanced between the ADMM residuals (Boyd et al. 2011, §3.4.1)
+        // at the cost of a refactorization whenever it changes.
         let mut rho_hat = vec![0.0; active.len()];
         let mut sigma = 1.0;
         let mut rho = vec![0.0; active.len()];
@@ -127,8 +259,9 @@ impl Integrator {
         let mut cstats = ContactStats::default();
         let dofs = 3 * self.n_free;
         let mut delta = vec![0.0; dofs];
-        // The velocity each contact's term pulls its vertex towards in the last primal step.
+        // The velocity each contact's term pulls its point towards in the last primal step.
         let mut want = vec![Vector3::zeros(); active.len()];
+        let identity = Matrix3::identity();
         // The value slot of row a, column b of free vertex f's diagonal block.
         let block = |s: &Self, f: usize, a: usize, b: usize| {
             s.col_ptr[3 * f + b] + 3 * s.diag_slot[f] as usize + a
@@ -139,39 +272,34 @@ impl Integrator {
             }
             self.assemble(sys, &x, &x0, Mode::Dynamic { h });
             if it == 0 {
-                for (k, (f, c)) in active.iter().enumerate() {
-                    let n = c.frame.row(0).transpose();
-                    let mut d = 0.0;
-                    for a in 0..3 {
-                        for b in 0..3 {
-                            d += n[a] * self.values[block(self, *f, a, b)] * n[b];
+                for (k, a) in active.iter().enumerate() {
+                    let n = a.c.frame.row(0).transpose();
+                    let mut compliance = 0.0;
+                    for &(f, w) in a.free() {
+                        let mut d = 0.0;
+                        for aa in 0..3 {
+                            for bb in 0..3 {
+                                d += n[aa] * self.values[block(self, f, aa, bb)] * n[bb];
+                            }
                         }
+                        compliance += w * w / d;
                     }
-                    rho_hat[k] = h * h * d;
+                    rho_hat[k] = h * h / compliance;
                     // z starts at the relative velocity of the prediction, made admissible
                     // (u_N ≥ −gap/h), so the first primal step is not pulled to rest.
-                    let i = c.vertex as usize;
-                    let mut u = c.frame * ((x[i] - x0[i]) / h - c.velocity);
-                    u[0] = u[0].max(-c.gap / h);
+                    let mut u = a.c.frame * (a.c.point_velocity(&x, &x0, h) - a.c.velocity);
+                    u[0] = u[0].max(-a.c.gap / h);
                     z[k] = u;
                 }
             }
-            for (k, (f, c)) in active.iter().enumerate() {
+            for (k, a) in active.iter().enumerate() {
                 rho[k] = sigma * rho_hat[k];
-                for a in 0..3 {
-                    let s = block(self, *f, a, a);
-                    self.values[s] += rho[k] / (h * h);
-                }
-                let dm = c.damping * sys.mass[c.vertex as usize] / h;
+                self.add_contact_blocks(a, rho[k] / (h * h), &identity);
+                let dm = a.c.damping * a.mass / h;
                 if dm > 0.0 {
-                    // d m/h · n nᵀ on the vertex's diagonal block (its full 3×3 is stored).
-                    let n = c.frame.row(0).transpose();
-                    for a in 0..3 {
-                        for b in 0..3 {
-                            let slot = block(self, *f, a, b);
-                            self.values[slot] += dm * n[a] * n[b];
-                        }
-                    }
+                    // d m/h · n nᵀ ⊗ w wᵀ on the point's blocks (their full 3×3 are stored).
+                    let n = a.c.frame.row(0).transpose();
+                    self.add_contact_blocks(a, dm, &(n * n.transpose()));
                 }
             }
             self.factor(&mut stats, 0.0)?;
@@ -186,21 +314,25 @@ impl Integrator {
                 for (d, g) in delta.iter_mut().zip(&self.grad) {
                     *d = -g;
                 }
-                for (k, (f, c)) in active.iter().enumerate() {
-                    let i = c.vertex as usize;
-                    let v = (x[i] - x0[i]) / h;
-                    want[k] = c.velocity + c.frame.transpose() * (z[k] + r[k] / rho[k]);
-                    let g = rho[k] / h * (v - want[k]) + damping_force(sys, c, v);
-                    for a in 0..3 {
-                        delta[3 * f + a] -= g[a];
+                for (k, a) in active.iter().enumerate() {
+                    let v = a.c.point_velocity(&x, &x0, h);
+                    want[k] = a.c.velocity + a.c.frame.transpose() * (z[k] + r[k] / rho[k]);
+                    let g = rho[k] / h * (v - want[k]) + damping_force(a, v);
+                    for &(f, w) in a.free() {
+                        for aa in 0..3 {
+                            delta[3 * f + aa] -= w * g[aa];
+                        }
                     }
                 }
                 self.solve_in_place(&mut stats, &mut delta);
                 let (mut primal, mut dual) = (0.0f64, 0.0f64);
-                for (k, (f, c)) in active.iter().enumerate() {
-                    let i = c.vertex as usize;
-                    let d = Vector3::new(delta[3 * f], delta[3 * f + 1], delta[3 * f + 2]);
-                    let hv = c.frame * ((x[i] + d - x0[i]) / h - c.velocity);
+                for (k, a) in active.iter().enumerate() {
+                    let c = a.c;
+                    let mut moved = Vector3::zeros();
+                    for &(f, w) in a.free() {
+                        moved += w * Vector3::new(delta[3 * f], delta[3 * f + 1], delta[3 * f + 2]);
+                    }
+                    let hv = c.frame * (c.point_velocity(&x, &x0, h) + moved / h - c.velocity);
                     let mut w = hv - r[k] / rho[k];
                     // u_N ≥ −gap/h: the same law for w shifted by the gap.
                     w[0] += c.gap / h;
@@ -228,12 +360,9 @@ impl Integrator {
                     };
                     let next = (sigma * factor).clamp(1e-8, 1e8);
                     if next != sigma {
-                        for (k, (f, _)) in active.iter().enumerate() {
+                        for (k, a) in active.iter().enumerate() {
                             let change = (next - sigma) * rho_hat[k];
-                            for a in 0..3 {
-                                let s = block(self, *f, a, a);
-                                self.values[s] += change / (h * h);
-                            }
+                            self.add_contact_blocks(a, change / (h * h), &identity);
                             rho[k] = next * rho_hat[k];
                         }
                         sigma = next;
@@ -247,21 +376,21 @@ impl Integrator {
             // whose Newton direction delta is: it descends (the factored matrix is SPD).
             let phi = |s: &Self, x: &[Vector3<f64>]| {
                 let mut e = s.objective(sys, x, &x0, Mode::Dynamic { h });
-                for (k, (_, c)) in active.iter().enumerate() {
-                    let i = c.vertex as usize;
-                    let v = (x[i] - x0[i]) / h;
+                for (k, a) in active.iter().enumerate() {
+                    let v = a.c.point_velocity(x, &x0, h);
                     e += 0.5 * rho[k] * (v - want[k]).norm_squared();
-                    let un = c.frame.row(0).transpose().dot(&(v - c.velocity));
-                    e += 0.5 * c.damping * sys.mass[i] * h * un * un;
+                    let un = a.c.frame.row(0).transpose().dot(&(v - a.c.velocity));
+                    e += 0.5 * a.c.damping * a.mass * h * un * un;
                 }
                 e
             };
             let mut slope: f64 = self.grad.iter().zip(&delta).map(|(g, d)| g * d).sum();
-            for (k, (f, c)) in active.iter().enumerate() {
-                let i = c.vertex as usize;
-                let v = (x[i] - x0[i]) / h;
-                let g = rho[k] / h * (v - want[k]) + damping_force(sys, c, v);
-                slope += (0..3).map(|a| g[a] * delta[3 * f + a]).sum::<f64>();
+            for (k, a) in active.iter().enumerate() {
+                let v = a.c.point_velocity(&x, &x0, h);
+                let g = rho[k] / h * (v - want[k]) + damping_force(a, v);
+                for &(f, w) in a.free() {
+                    slope += w * (0..3).map(|aa| g[aa] * delta[3 * f + aa]).sum::<f64>();
+                }
             }
             let e0 = phi(self, &x);
             let xmax = x.iter().fold(0.0f64, |m, p| m.max(p.amax()));
@@ -298,12 +427,11 @@ impl Integrator {
         if !stats.converged {
             return Err(stats.not_converged(settings.tolerance));
         }
-        for (k, (_, c)) in active.iter().enumerate() {
-            let i = c.vertex as usize;
-            let mut u = c.frame * ((x[i] - x0[i]) / h - c.velocity);
+        for (k, a) in active.iter().enumerate() {
+            let c = a.c;
+            let mut u = c.frame * (c.point_velocity(&x, &x0, h) - c.velocity);
             u[0] += c.gap / h;
-            let rr = r[k];
-            let res = residual(u.into(), rr.into(), c.friction, c.cohesion);
+            let res = residual(u.into(), r[k].into(), c.friction, c.cohesion);
             cstats.max_residual = cstats.max_residual.max(res / rho[k].max(f64::MIN_POSITIVE));
         }
         cstats.impulses = vec![[0.0; 3]; contacts.len()];
@@ -318,13 +446,15 @@ impl Integrator {
     }
 }
 
-/// The gradient of the contact's damping term ½ c m h (n·(v − v_c))² in x: c m (n·(v − v_c)) n.
-fn damping_force(sys: &SolidSystem, c: &VertexContact, v: Vector3<f64>) -> Vector3<f64> {
+/// The gradient of the contact's damping term ½ c m h (n·(v − v_c))² in the point's
+/// position: c m (n·(v − v_c)) n.
+fn damping_force(a: &Active<'_>, v: Vector3<f64>) -> Vector3<f64> {
+    let c = a.c;
     if c.damping == 0.0 {
         return Vector3::zeros();
     }
     let n = c.frame.row(0).transpose();
-    c.damping * sys.mass[c.vertex as usize] * n.dot(&(v - c.velocity)) * n
+    c.damping * a.mass * n.dot(&(v - c.velocity)) * n
 }
 
 #[cfg(test)]
@@ -361,14 +491,14 @@ mod tests {
         let (sys, mut s, mut integ, settings) = one_vertex();
         let mut off = 0.0f64;
         for _ in 0..100 {
-            let c = VertexContact {
-                vertex: 0,
+            let c = Contact {
                 frame,
                 gap: s.x[0].dot(&n),
                 velocity: Vector3::zeros(),
                 friction: mu,
                 cohesion: 0.0,
                 damping: 0.0,
+                ..Contact::vertex(0)
             };
             // A second plane, tilted 35° towards the slope's downhill side and 1 mm away: it
             // never touches, and must change nothing.
@@ -376,7 +506,7 @@ mod tests {
                 let r =
                     nalgebra::Rotation3::from_axis_angle(&Vector3::z_axis(), 35f64.to_radians());
                 let (n2, t12) = (r * n, r * t1);
-                VertexContact {
+                Contact {
                     frame: Matrix3::from_rows(&[n2.transpose(), t12.transpose(), t2.transpose()]),
                     gap: 1e-3,
                     ..c
@@ -433,14 +563,14 @@ mod tests {
             let (sys, mut s, mut integ, settings) = one_vertex();
             let h = 0.01;
             for _ in 0..50 {
-                let c = VertexContact {
-                    vertex: 0,
+                let c = Contact {
                     frame,
                     gap: -s.x[0].y,
                     velocity: Vector3::zeros(),
                     friction: 0.5,
                     cohesion: factor * 9.81 * h,
                     damping: 0.0,
+                    ..Contact::vertex(0)
                 };
                 if c.gap > 1e-3 {
                     // Torn off: out of reach, no contact.
@@ -467,6 +597,90 @@ mod tests {
         };
         assert!(hang(1.05).abs() < 1e-9, "{}", hang(1.05));
         assert!(hang(0.95) < -1e-2, "{}", hang(0.95));
+    }
+
+    /// Two 1 kg vertices 0.2 m apart, joined by a stiff stretch (EA = 10⁴ N), at rest on a
+    /// knife edge under their middle (a contact at weights (½, ½), n = +y, μ = 1): the edge
+    /// carries both weights exactly, as one impulse 2 m g h a step, and nothing moves (below
+    /// 1e-9 m over 0.5 s). Off the middle (weights (¾, ¼)) the bar tips: the contact point
+    /// stays on the edge (to 1e-9 m) while the far vertex falls. Without the stretch the
+    /// vertices share no block, and the step says so instead of solving something else.
+    #[test]
+    fn a_contact_between_two_vertices_carries_them_by_its_weights() {
+        use crate::energy::RodStretch;
+        let bar = |stretch: bool| {
+            let mut sys = SolidSystem::new(vec![1.0, 1.0]);
+            sys.gravity = Vector3::new(0.0, -9.81, 0.0);
+            if stretch {
+                sys.elements.stretches.push(RodStretch {
+                    v: [0, 1],
+                    rest_length: 0.2,
+                    k: 1e4,
+                });
+            }
+            let s = State {
+                x: vec![Vector3::new(-0.1, 0.0, 0.0), Vector3::new(0.1, 0.0, 0.0)],
+                v: vec![Vector3::zeros(); 2],
+            };
+            (sys, s)
+        };
+        let settings = Settings {
+            method: Method::Newton,
+            tolerance: 1e-12,
+            max_iterations: 50,
+        };
+        let h = 0.01;
+        let frame = Matrix3::new(0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0);
+        let run = |w: f64, steps: usize| {
+            let (sys, mut s) = bar(true);
+            let mut integ = Integrator::new(&sys).unwrap();
+            let mut last = [0.0; 3];
+            for _ in 0..steps {
+                let c = Contact {
+                    frame,
+                    gap: (1.0 - w) * s.x[0].y + w * s.x[1].y,
+                    friction: 1.0,
+                    ..Contact::points(&[(0, 1.0 - w), (1, w)])
+                };
+                let set = ContactSet {
+                    contacts: &[c],
+                    max_admm: 500,
+                    warm: &[],
+                    guess: None,
+                };
+                let (_, cs) = integ
+                    .step_contacts(&sys, &mut s, None, h, &settings, set)
+                    .unwrap();
+                last = cs.impulses[0];
+            }
+            (s, last)
+        };
+        let (s, r) = run(0.5, 50);
+        let moved = (s.x[0] - Vector3::new(-0.1, 0.0, 0.0))
+            .amax()
+            .max((s.x[1] - Vector3::new(0.1, 0.0, 0.0)).amax());
+        assert!(moved < 1e-9, "{moved}");
+        assert!((r[0] / (2.0 * 9.81 * h) - 1.0).abs() < 1e-9, "{r:?}");
+        let (s, _) = run(0.25, 20);
+        let point = 0.75 * s.x[0].y + 0.25 * s.x[1].y;
+        assert!(point.abs() < 1e-9 && s.x[1].y < -1e-3, "{point} {:?}", s.x);
+        let (sys, mut s) = bar(false);
+        let mut integ = Integrator::new(&sys).unwrap();
+        let c = Contact {
+            frame,
+            ..Contact::points(&[(0, 0.5), (1, 0.5)])
+        };
+        let set = ContactSet {
+            contacts: &[c],
+            max_admm: 10,
+            warm: &[],
+            guess: None,
+        };
+        let e = integ.step_contacts(&sys, &mut s, None, h, &settings, set);
+        assert!(
+            matches!(e, Err(StepError::Factorization(ref m)) if m.contains("share no element")),
+            "{e:?}"
+        );
     }
 
     /// Nonlinear with contacts: a stiff chain (4 segments of 0.1 m, EA = 10⁴ N, 10 g a
@@ -503,15 +717,15 @@ mod tests {
         let frame = Matrix3::new(0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0);
         let mut lowest = f64::INFINITY;
         for _ in 0..200 {
-            let contacts: Vec<VertexContact> = (1..n as u32)
-                .map(|i| VertexContact {
-                    vertex: i,
+            let contacts: Vec<Contact> = (1..n as u32)
+                .map(|i| Contact {
                     frame,
                     gap: s.x[i as usize].y,
                     velocity: Vector3::zeros(),
                     friction: 0.3,
                     cohesion: 0.0,
                     damping: 0.0,
+                    ..Contact::vertex(i)
                 })
                 .collect();
             integ
