@@ -14,7 +14,8 @@ use weft_graph::{Context, Graph, Registry, load_str};
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {
     /// Suite to run: `graph` (engine overhead), `solid` (cloth and hair solver), `contact`
-    /// (a cloth draped on a sphere: detection, ADMM and Newton per step), `fluid`
+    /// (a cloth draped on a sphere: detection, ADMM and Newton per step; and the incline
+    /// sweep against Coulomb, charted into `--out`), `fluid`
     /// (pressure solve against memory bandwidth), or a sweep: `accuracy` (solid integrators
     /// over step, stiffness and Newton tolerance: error against step and wall time, stability
     /// maps), `convergence` (verification scenes under refinement, with fitted orders) or
@@ -199,8 +200,15 @@ pub fn run(reg: &Arc<Registry>, a: BenchArgs) -> ExitCode {
                 return ExitCode::from(1);
             }
         },
-        "contact" => match crate::bench_contact::suite(a.quick) {
-            Ok(r) => r,
+        "contact" => match crate::bench_contact::suite(a.quick, &a.out) {
+            Ok((r, checks)) => {
+                crate::sweep::print_checks(&checks);
+                if a.quick && checks.iter().any(|(_, ok)| !ok) {
+                    eprintln!("error: a fact theory fixes did not hold (see FAIL above)");
+                    return ExitCode::from(1);
+                }
+                r
+            }
             Err(e) => {
                 eprintln!("error: {e}");
                 return ExitCode::from(1);

@@ -7,13 +7,27 @@
 //! checks), the ADMM loops (their triangular solves, contact projections and refactorizations)
 //! and the rest of Newton (assembly, factorization, line search); contacts, ADMM and Newton
 //! iterations per step. The goal is contact handling (detection + ADMM) at most half of a step.
+//!
+//! The incline sweep (VERIFY's incline as a chart): a 0.1 m cloth patch on a plane with
+//! friction μ = 0.5 under gravity tilted by θ from 10° to 40° (finer around atan μ =
+//! 26.57°), 4 steps a frame for 1 s, Newton and ADMM to 1e-11 m/s. Implicit Euler's velocity
+//! under a constant net force is exactly a t, so the patch's velocity after 1 s is its
+//! acceleration, charted against Coulomb's a = g max(0, sin θ − μ cos θ) into
+//! `OUT/contact_incline.{png,svg,csv}`. Checked (exit 1 with `--quick` when one fails):
+//! stuck angles creep below 1e-9 m, sliding ones are within 1 % of Coulomb, and the first
+//! sliding angle is within 0.5° of atan μ.
 
 use crate::row::Row;
+use crate::sweep::Checks;
+use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 use weft_scene::procedural::{Plane, grid, sphere};
 use weft_scene::{Channel, Collider, CollisionGroup, ElementKind, Geometry, SceneElement};
-use weft_sim::{BehaviorTree, Collision, DiscreteShellMaterial, Gravity, SolidStepper, compile};
+use weft_sim::{
+    BehaviorTree, Collision, DiscreteShellMaterial, Gravity, SolidStepper, StepperSettings, compile,
+};
+use weft_solid::Settings;
 
 fn drape(n: usize) -> Vec<SceneElement> {
     let friction = Collider {
@@ -51,18 +65,22 @@ struct Measured {
     newton_iterations: usize,
 }
 
-fn run(n: usize, frames: i64) -> Result<Measured, String> {
-    let scene = drape(n);
-    let tree = BehaviorTree {
+/// Cloth material, `gravity` and collisions.
+fn tree(gravity: [f64; 3]) -> BehaviorTree {
+    BehaviorTree {
         behaviors: vec![
             Arc::new(DiscreteShellMaterial),
             Arc::new(Gravity {
-                acceleration: [0.0, -9.81, 0.0],
+                acceleration: gravity,
             }),
             Arc::new(Collision),
         ],
-    };
-    let compiled = Arc::new(compile(&scene, &tree).map_err(|e| e.to_string())?);
+    }
+}
+
+fn run(n: usize, frames: i64) -> Result<Measured, String> {
+    let scene = drape(n);
+    let compiled = Arc::new(compile(&scene, &tree([0.0, -9.81, 0.0])).map_err(|e| e.to_string())?);
     let vertices = compiled.state.x.len();
     let settings = crate::bench_solid::one_step_a_frame();
     let mut stepper = SolidStepper::new(compiled, settings).map_err(|e| e.to_string())?;
@@ -95,11 +113,166 @@ fn run(n: usize, frames: i64) -> Result<Measured, String> {
     Ok(m)
 }
 
-pub(crate) fn suite(quick: bool) -> Result<Vec<Row>, String> {
-    let sizes: &[usize] = if quick { &[16, 32] } else { &[64, 128, 256] };
-    let frames = if quick { 2 } else { 4 };
+/// The patch on the incline at θ [°] with friction `mu`: (its velocity along the slope after
+/// 1 s [m/s], the largest displacement along it [m]). Gravity tilted by θ about z is the
+/// plane y = 0 tilted by θ; the patch lies on it, both thicknesses (2 mm) up.
+fn incline(theta_deg: f64, mu: f64) -> Result<(f64, f64), String> {
+    let side = Collider {
+        friction: mu,
+        thickness: 1e-3,
+        cohesion: 0.0,
+    };
+    let mut patch = SceneElement::new(
+        "patch",
+        ElementKind::Cloth,
+        Geometry::Mesh(grid([0.1, 0.1], [3, 3], Plane::Xz, [0.0, 2e-3, 0.0])),
+    );
+    patch.secs.insert(side.clone());
+    let mut plane = SceneElement::new(
+        "plane",
+        ElementKind::Collider,
+        Geometry::Mesh(grid([4.0, 4.0], [2, 2], Plane::Xz, [0.0; 3])),
+    );
+    plane.secs.insert(side);
+    let mut group = SceneElement::new("contacts", ElementKind::Collision, Geometry::None);
+    group.secs.insert(CollisionGroup::default());
+    let scene = vec![patch, plane, group];
+    let th = theta_deg.to_radians();
+    let gravity = [9.81 * th.sin(), -9.81 * th.cos(), 0.0];
+    let compiled = Arc::new(compile(&scene, &tree(gravity)).map_err(|e| e.to_string())?);
+    let settings = StepperSettings {
+        substeps: 4,
+        contact_iterations: 2000,
+        solver: Settings {
+            tolerance: 1e-11,
+            max_iterations: 50,
+            ..Settings::default()
+        },
+        ..StepperSettings::default()
+    };
+    let mut stepper = SolidStepper::new(compiled, settings).map_err(|e| e.to_string())?;
+    let mut state = stepper.initial_state(&scene);
+    let x0 = state.solid.x.clone();
+    for f in 1..=24 {
+        state = stepper
+            .advance(&state, &scene, f, 1.0 / 24.0)
+            .map_err(|e| format!("incline {theta_deg}°: {e}"))?
+            .0;
+    }
+    let n = state.solid.v.len() as f64;
+    let v = state.solid.v.iter().map(|v| v.x).sum::<f64>() / n;
+    let slide = state
+        .solid
+        .x
+        .iter()
+        .zip(&x0)
+        .fold(0.0f64, |m, (a, b)| m.max((a.x - b.x).abs()));
+    Ok((v, slide))
+}
+
+/// The incline sweep (module doc): its rows, its checks, and its chart and CSV in `out`.
+fn incline_sweep(quick: bool, out: &Path) -> Result<(Vec<Row>, Checks), String> {
+    let mu: f64 = 0.5;
+    let threshold = mu.atan().to_degrees();
+    let angles: Vec<f64> = if quick {
+        vec![20.0, 26.1, 27.0, 35.0]
+    } else {
+        let mut a: Vec<f64> = (0..=12).map(|k| 10.0 + 2.5 * k as f64).collect();
+        a.extend([26.0, 26.25, 26.5, 26.75, 27.0]);
+        a.sort_by(f64::total_cmp);
+        a
+    };
+    let coulomb = |theta: f64| {
+        let th = theta.to_radians();
+        (9.81 * (th.sin() - mu * th.cos())).max(0.0)
+    };
+    let mut measured = Vec::new();
+    let mut csv = String::from("theta_deg,acceleration_m_s2,coulomb_m_s2,slide_m\n");
+    let (mut creep, mut slip_error) = (0.0f64, 0.0f64);
+    let mut first_slide = f64::INFINITY;
+    for &theta in &angles {
+        let (a, slide) = incline(theta, mu)?;
+        let want = coulomb(theta);
+        csv += &format!("{theta},{a:e},{want:e},{slide:e}\n");
+        if want == 0.0 {
+            creep = creep.max(slide);
+        } else {
+            slip_error = slip_error.max((a / want - 1.0).abs());
+        }
+        if slide > 1e-6 {
+            first_slide = first_slide.min(theta);
+        }
+        measured.push((theta, a));
+    }
+    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    weft_graph::atomic_write(&out.join("contact_incline.csv"), csv.as_bytes())
+        .map_err(|e| e.to_string())?;
+    let curve: Vec<(f64, f64)> = (0..=300)
+        .map(|k| 10.0 + 30.0 * k as f64 / 300.0)
+        .map(|t| (t, coulomb(t)))
+        .collect();
+    crate::charts::incline(&measured, &curve, mu, &out.join("contact_incline"))?;
+    let checks = vec![
+        (
+            format!("incline: stuck angles creep {creep:.1e} m < 1e-9 m"),
+            creep < 1e-9,
+        ),
+        (
+            format!(
+                "incline: sliding within {:.3} % of Coulomb (< 1 %)",
+                100.0 * slip_error
+            ),
+            slip_error < 0.01,
+        ),
+        (
+            format!(
+                "incline: first sliding angle {first_slide}° vs atan μ = {threshold:.2}° (within 0.5°)"
+            ),
+            (first_slide - threshold).abs() < 0.5,
+        ),
+    ];
+    let rows = vec![
+        Row {
+            case: "incline μ 0.5: largest creep where Coulomb sticks".into(),
+            nodes: angles.len(),
+            value: creep * 1e9,
+            unit: "nm",
+            target: "< 1 nm",
+        },
+        Row {
+            case: "incline μ 0.5: largest sliding error against Coulomb".into(),
+            nodes: angles.len(),
+            value: 100.0 * slip_error,
+            unit: "%",
+            target: "< 1 %",
+        },
+        Row {
+            case: "incline μ 0.5: first sliding angle − atan μ".into(),
+            nodes: angles.len(),
+            value: first_slide - threshold,
+            unit: "°",
+            target: "|·| < 0.5°",
+        },
+    ];
+    Ok((rows, checks))
+}
+
+/// The suite: the incline sweep (rows, checks, chart in `out`) and the drape's costs.
+pub(crate) fn suite(quick: bool, out: &Path) -> Result<(Vec<Row>, Checks), String> {
+    let (mut rows, checks) = incline_sweep(quick, out)?;
+    rows.extend(drape_rows(quick)?);
+    Ok((rows, checks))
+}
+
+fn drape_rows(quick: bool) -> Result<Vec<Row>, String> {
+    // (n, frames): the 64k-vertex drape takes minutes a step, so it runs two.
+    let sizes: &[(usize, i64)] = if quick {
+        &[(16, 2), (32, 2)]
+    } else {
+        &[(64, 4), (128, 4), (256, 2)]
+    };
     let mut rows = Vec::new();
-    for &n in sizes {
+    for &(n, frames) in sizes {
         let m = run(n, frames)?;
         let steps = m.steps as f64;
         let ms = |s: f64| s * 1e3 / steps;

@@ -63,6 +63,21 @@ macro_rules! both {
     }};
 }
 
+/// The chart's legend at `at`, boxed on a light background.
+fn legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    at: SeriesLabelPosition,
+) -> Result<(), String> {
+    chart
+        .configure_series_labels()
+        .position(at)
+        .label_font((FONT, 12))
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()
+        .map_err(err)
+}
+
 fn log_range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
     let (lo, hi) = vals
         .filter(|v| v.is_finite() && *v > 0.0)
@@ -232,15 +247,7 @@ fn curves_on<DB: DrawingBackend>(
             .label("Pareto front")
             .legend(|(x, y)| Circle::new((x + 9, y), 6, BLACK.stroke_width(1)));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .label_font((FONT, 12))
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()
-        .map_err(err)?;
-    Ok(())
+    legend(&mut chart, SeriesLabelPosition::LowerRight)
 }
 
 /// Stability maps: one panel per method, step size across and `param` (named `label`) up,
@@ -345,4 +352,70 @@ fn methods(runs: &[Run]) -> Vec<&'static str> {
         }
     }
     m
+}
+
+/// The incline sweep: measured acceleration along the slope against the angle (points), on
+/// Coulomb's a = g max(0, sin θ − μ cos θ) (`curve`), with atan μ marked.
+pub fn incline(
+    measured: &[(f64, f64)],
+    curve: &[(f64, f64)],
+    mu: f64,
+    stem: &Path,
+) -> Result<(), String> {
+    both!(stem, SIZE, incline_on(measured, curve, mu))
+}
+
+fn incline_on<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    measured: &[(f64, f64)],
+    curve: &[(f64, f64)],
+    mu: f64,
+) -> Result<(), String> {
+    let x1 = curve.iter().map(|p| p.0).fold(0.0f64, f64::max);
+    let x0 = curve.iter().map(|p| p.0).fold(x1, f64::min);
+    let y1 = curve
+        .iter()
+        .chain(measured)
+        .map(|p| p.1)
+        .fold(0.0f64, f64::max)
+        * 1.1;
+    root.fill(&WHITE).map_err(err)?;
+    let title = format!("cloth patch on an incline, μ = {mu}: stick, then Coulomb sliding");
+    let mut chart = ChartBuilder::on(root)
+        .caption(title, (FONT, 18))
+        .margin(12)
+        .x_label_area_size(42)
+        .y_label_area_size(64)
+        .build_cartesian_2d(x0..x1, 0.0..y1.max(1e-3))
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .x_desc("incline θ [°]")
+        .y_desc("acceleration along the slope [m/s²]")
+        .label_style((FONT, 12))
+        .draw()
+        .map_err(err)?;
+    let line = RGBColor(31, 119, 180);
+    chart
+        .draw_series(LineSeries::new(curve.to_vec(), line.stroke_width(2)))
+        .map_err(err)?
+        .label("Coulomb: g max(0, sin θ − μ cos θ)")
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], line.stroke_width(2)));
+    let atan = mu.atan().to_degrees();
+    let grey = RGBColor(127, 127, 127);
+    chart
+        .draw_series(LineSeries::new(
+            vec![(atan, 0.0), (atan, y1)],
+            grey.stroke_width(1),
+        ))
+        .map_err(err)?
+        .label(format!("atan μ = {atan:.2}°"))
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], grey.stroke_width(1)));
+    let dot = RGBColor(214, 39, 40);
+    chart
+        .draw_series(measured.iter().map(|p| Circle::new(*p, 4, dot.filled())))
+        .map_err(err)?
+        .label("Weft (velocity after 1 s)")
+        .legend(move |(x, y)| Circle::new((x + 9, y), 4, dot.filled()));
+    legend(&mut chart, SeriesLabelPosition::UpperLeft)
 }
