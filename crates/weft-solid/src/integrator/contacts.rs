@@ -261,6 +261,8 @@ impl Integrator {
         let mut delta = vec![0.0; dofs];
         // The velocity each contact's term pulls its point towards in the last primal step.
         let mut want = vec![Vector3::zeros(); active.len()];
+        // Each contact point's velocity at the Newton iterate (fixed during an ADMM loop).
+        let mut vel = vec![Vector3::zeros(); active.len()];
         let identity = Matrix3::identity();
         // The value slot of row a, column b of free vertex f's diagonal block.
         let block = |s: &Self, f: usize, a: usize, b: usize| {
@@ -303,6 +305,9 @@ impl Integrator {
                 }
             }
             self.factor(&mut stats, 0.0)?;
+            for (v, a) in vel.iter_mut().zip(&active) {
+                *v = a.c.point_velocity(&x, &x0, h);
+            }
             let mut admm_converged = false;
             let admm_start = std::time::Instant::now();
             for round in 0..max_admm.max(1) {
@@ -315,7 +320,7 @@ impl Integrator {
                     *d = -g;
                 }
                 for (k, a) in active.iter().enumerate() {
-                    let v = a.c.point_velocity(&x, &x0, h);
+                    let v = vel[k];
                     want[k] = a.c.velocity + a.c.frame.transpose() * (z[k] + r[k] / rho[k]);
                     let g = rho[k] / h * (v - want[k]) + damping_force(a, v);
                     for &(f, w) in a.free() {
@@ -332,7 +337,7 @@ impl Integrator {
                     for &(f, w) in a.free() {
                         moved += w * Vector3::new(delta[3 * f], delta[3 * f + 1], delta[3 * f + 2]);
                     }
-                    let hv = c.frame * (c.point_velocity(&x, &x0, h) + moved / h - c.velocity);
+                    let hv = c.frame * (vel[k] + moved / h - c.velocity);
                     let mut w = hv - r[k] / rho[k];
                     // u_N ≥ −gap/h: the same law for w shifted by the gap.
                     w[0] += c.gap / h;
@@ -386,7 +391,7 @@ impl Integrator {
             };
             let mut slope: f64 = self.grad.iter().zip(&delta).map(|(g, d)| g * d).sum();
             for (k, a) in active.iter().enumerate() {
-                let v = a.c.point_velocity(&x, &x0, h);
+                let v = vel[k];
                 let g = rho[k] / h * (v - want[k]) + damping_force(a, v);
                 for &(f, w) in a.free() {
                     slope += w * (0..3).map(|aa| g[aa] * delta[3 * f + aa]).sum::<f64>();
