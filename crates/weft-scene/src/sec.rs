@@ -444,8 +444,8 @@ impl Members {
     }
 }
 
-/// Collision Group: which simulated elements collide with which colliders, and how contacts
-/// are detected. Carried by a data-less collision element; several may coexist, each with its
+/// Collision Group: which simulated elements collide with which colliders and with each other
+/// (and themselves), and how contacts are detected. Carried by a data-less collision element; several may coexist, each with its
 /// own members and methods.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CollisionGroup {
@@ -458,6 +458,15 @@ pub struct CollisionGroup {
     /// Segment–face: every hair segment against the colliders' triangles, so a strand
     /// touches between its vertices too (default on; cloth has no segments).
     pub segment_face: bool,
+    /// Edge–edge: between members, every cloth edge and hair segment against the others'
+    /// (default on): crossing edges touch between their vertices, and hair on hair has no
+    /// faces.
+    pub edge_edge: bool,
+    /// Members collide with each other (default on): layers of clothing, hair on a collar.
+    pub between_members: bool,
+    /// Each member collides with itself (default off): a skirt folding onto itself, strands
+    /// of one groom on each other. Primitives that share a vertex never collide.
+    pub self_collision: bool,
 }
 
 impl Default for CollisionGroup {
@@ -467,6 +476,9 @@ impl Default for CollisionGroup {
             colliders: Members::All,
             vertex_face: true,
             segment_face: true,
+            edge_edge: true,
+            between_members: true,
+            self_collision: false,
         }
     }
 }

@@ -512,6 +512,8 @@ impl CoupledStepper {
                     guess,
                     (0.0, 1.0, h),
                     &settings.solid,
+                    // A coupling iteration is not retried smaller: cut back instead.
+                    true,
                     stats,
                 )
                 .map_err(fail),

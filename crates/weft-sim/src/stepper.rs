@@ -161,6 +161,7 @@ impl SolidStepper {
                 None,
                 (s0, s1, h),
                 &self.settings.solver,
+                depth >= self.settings.max_retries,
                 stats.contacts.get_or_insert_with(Default::default),
             )
         } else {

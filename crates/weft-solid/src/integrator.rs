@@ -100,6 +100,11 @@ pub struct Integrator {
     /// positions it bounds the floating-point resolution of the objective.
     force_scale: f64,
     stop: Option<StopCheck>,
+    /// The memory limit the pattern was built within (kept for rebuilds).
+    max_bytes: Option<u64>,
+    /// Blocks beyond the elements' (free index pairs, sorted, lower first): the last
+    /// contacts' between vertices that share no element.
+    extra: Vec<(u32, u32)>,
 }
 
 impl Integrator {
@@ -123,6 +128,35 @@ impl Integrator {
     /// sum over elements of (stencil size)², the factor's size is exact once the symbolic
     /// analysis has run.
     pub fn new_within(sys: &SolidSystem, max_bytes: Option<u64>) -> Result<Self, StepError> {
+        Self::build(sys, max_bytes, Vec::new())
+    }
+
+    /// Makes the pattern the elements' plus exactly the blocks of `extra` (pairs of free
+    /// vertex indices, sorted, each lower first): contacts between vertices that share no
+    /// element need them. Rebuilds the pattern, ordering and symbolic factorization only
+    /// when `extra` differs from the current one, so the pattern is a function of the system
+    /// and the step's contacts alone, never of the history (a resumed run factors the same
+    /// matrices).
+    /// Returns whether it rebuilt.
+    fn ensure_extra(
+        &mut self,
+        sys: &SolidSystem,
+        extra: Vec<(u32, u32)>,
+    ) -> Result<bool, StepError> {
+        if extra == self.extra {
+            return Ok(false);
+        }
+        let stop = self.stop.take();
+        *self = Self::build(sys, self.max_bytes, extra)?;
+        self.stop = stop;
+        Ok(true)
+    }
+
+    fn build(
+        sys: &SolidSystem,
+        max_bytes: Option<u64>,
+        extra: Vec<(u32, u32)>,
+    ) -> Result<Self, StepError> {
         const GIB: f64 = (1u64 << 30) as f64;
         let refuse = |what, need: u64, limit: u64| StepError::TooLarge {
             what,
@@ -168,6 +202,12 @@ impl Integrator {
                 }
             }
         });
+        for &(a, b) in &extra {
+            if let (Some(la), true) = (nbrs.get_mut(a as usize), (b as usize) < n_free) {
+                la.push(b);
+                nbrs[b as usize].push(a);
+            }
+        }
         for l in &mut nbrs {
             l.sort_unstable();
             l.dedup();
@@ -318,6 +358,8 @@ impl Integrator {
             local: Local::default(),
             force_scale: 0.0,
             stop: None,
+            max_bytes,
+            extra,
             per_element: RefCell::new(vec![0.0; slot_offset.len()]),
             slot_offset,
             colors,

@@ -101,6 +101,15 @@ pub enum StepError {
         /// The tolerance asked for.
         tolerance: f64,
     },
+    /// The step would end with primitives of the solids passing through each other (found by
+    /// continuous detection after the contacts' last re-solve): a smaller step is tried.
+    #[error(
+        "the step would end with {pairs} pair(s) of primitives passing through each other (continuous detection)"
+    )]
+    Intersecting {
+        /// Pairs whose paths cross.
+        pairs: usize,
+    },
     /// The sparse Cholesky factorization failed (the matrix was not positive definite).
     #[error("sparse Cholesky failed: {0}")]
     Factorization(String),

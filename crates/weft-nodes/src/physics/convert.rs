@@ -174,13 +174,16 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         },
     )?;
     r.register(
-        NodeSpec::new("convert.collision_group", "a collision element: which cloth and hair elements collide with which colliders and how (a Collision Group SEC and a Collision Response SEC on a data-less element; several may coexist); needs behavior.collision in the solver's tree")
+        NodeSpec::new("convert.collision_group", "a collision element: which cloth and hair elements collide with which colliders, with each other and with themselves, and how (a Collision Group SEC and a Collision Response SEC on a data-less element; several may coexist); needs behavior.collision in the solver's tree")
             .output("element", "element", "a data-less collision element")
             .param(ParamSpec::string("name", "collision").doc("element name, unique in the scene"))
             .param(ParamSpec::string("members", "all").doc("the cloth and hair elements that collide: all, or names separated by commas"))
             .param(ParamSpec::string("colliders", "all").doc("the collider elements they collide with: all, or names separated by commas"))
             .param(ParamSpec::bool("vertex_face", true).doc("detect every member vertex against the colliders' triangles"))
             .param(ParamSpec::bool("segment_face", true).doc("detect every member hair segment against the colliders' triangles (a strand touches between its vertices too)"))
+            .param(ParamSpec::bool("edge_edge", true).doc("detect the members' cloth edges and hair segments against each other's (crossing edges touch between their vertices; hair on hair has no faces)"))
+            .param(ParamSpec::bool("between_members", true).doc("members collide with each other (layers of clothing, hair on a collar)"))
+            .param(ParamSpec::bool("self_collision", false).doc("each member collides with itself (a skirt folding onto itself, strands of one groom on each other); primitives sharing a vertex never do"))
             .param(ParamSpec::float("strength", CollisionResponse::default().strength).gt(0.0).le(1.0).doc("fraction of an existing penetration resolved per step (a start inside a collider separates over steps)"))
             .param(ParamSpec::float("damping", CollisionResponse::default().damping).ge(0.0).unit("1/s").doc("damping of the normal relative velocity at a contact")),
         |p| {
@@ -200,6 +203,9 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                     colliders: Members::parse(p.str("colliders")?),
                     vertex_face: p.bool("vertex_face")?,
                     segment_face: p.bool("segment_face")?,
+                    edge_edge: p.bool("edge_edge")?,
+                    between_members: p.bool("between_members")?,
+                    self_collision: p.bool("self_collision")?,
                 });
                 e.secs.insert(CollisionResponse {
                     strength: p.f64("strength")?,

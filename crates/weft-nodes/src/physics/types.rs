@@ -109,5 +109,9 @@ pub(crate) fn contact_stats_json(c: &weft_sim::ContactFrameStats) -> serde_json:
         "max_residual": c.max_residual,
         "detection_seconds": c.detection_seconds,
         "admm_seconds": c.admm_seconds,
+        "crossing_retries": c.crossing_retries,
+        "cut_backs": c.cut_backs,
+        "started_inside": c.started_inside,
+        "pattern_rebuilds": c.pattern_rebuilds,
     })
 }

@@ -47,3 +47,41 @@ impl TriangleTree {
         out.extend(self.bvh.intersect_aabb(&aabb));
     }
 }
+
+/// Boxes of a deforming solid's primitives (vertices, edges, triangles); leaf k is box k.
+/// Refit each step to the primitives' swept boxes; pairs of overlapping leaves are found by
+/// traversing two trees (or one against itself) together.
+pub(crate) struct BoxTree {
+    bvh: Bvh,
+    workspace: BvhWorkspace,
+}
+
+impl BoxTree {
+    /// A tree over the boxes `lo[k]..hi[k]`.
+    pub(crate) fn new(boxes: &[(Vector3<f64>, Vector3<f64>)]) -> Self {
+        let leaves: Vec<Aabb> = boxes
+            .iter()
+            .map(|(lo, hi)| Aabb::new(g(lo), g(hi)))
+            .collect();
+        BoxTree {
+            bvh: Bvh::from_leaves(BvhBuildStrategy::Binned, &leaves),
+            workspace: BvhWorkspace::default(),
+        }
+    }
+
+    /// Moves leaf k to box k and refits (the structure is kept).
+    pub(crate) fn refit(&mut self, boxes: &[(Vector3<f64>, Vector3<f64>)]) {
+        for (k, (lo, hi)) in boxes.iter().enumerate() {
+            self.bvh
+                .insert_or_update_partially(Aabb::new(g(lo), g(hi)), k as u32, 0.0);
+        }
+        self.bvh.refit(&mut self.workspace);
+    }
+
+    /// Appends to `out` every pair (leaf of `self`, leaf of `other`) whose boxes overlap, in
+    /// traversal order (the same for the same trees). With `other` = `self` each unordered
+    /// pair comes twice and each leaf with itself.
+    pub(crate) fn pairs(&self, other: &BoxTree, out: &mut Vec<(u32, u32)>) {
+        out.extend(self.bvh.leaf_pairs(&other.bvh, |a, b| a.intersects(b)));
+    }
+}

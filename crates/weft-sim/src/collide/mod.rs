@@ -20,7 +20,9 @@
 //! thin plane is stopped whatever the step).
 
 mod bvh;
+pub(crate) mod ccd;
 pub(crate) mod geometry;
+mod solids;
 mod step;
 
 pub use step::{ContactFrameStats, Contacts};
@@ -52,6 +54,9 @@ pub struct ColliderSetup {
     /// defined, so a vertex found inside is pushed out through the nearest face. Otherwise
     /// only distance is (a vertex is kept on the side it comes from).
     pub closed: bool,
+    /// Closed meshes: per triangle, the triangle across each edge k (from corner k to
+    /// k + 1), for the edge's pseudo-normal (empty for open meshes).
+    pub across: Vec<[u32; 3]>,
 }
 
 /// One simulated element against one collider, with the contact parameters of the pair.
@@ -79,6 +84,32 @@ pub struct ContactPair {
     pub segments: bool,
 }
 
+/// Two simulated elements that collide (or one with itself), with the contact parameters of
+/// the pair.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SolidPair {
+    /// Scene indices of the two elements, `a ≤ b` (equal: self-collision).
+    pub a: usize,
+    /// See `a`.
+    pub b: usize,
+    /// Scene index of the collision element that made the pair.
+    pub group: usize,
+    /// Friction coefficient μ (the geometric mean of both sides').
+    pub friction: f64,
+    /// Distance kept between the two surfaces [m] (both sides' thicknesses).
+    pub distance: f64,
+    /// Cohesion [Pa] (the larger side's).
+    pub cohesion: f64,
+    /// Fraction of an existing penetration resolved per step.
+    pub strength: f64,
+    /// Damping of the normal relative velocity [1/s].
+    pub damping: f64,
+    /// Vertex–face detection on (vertices against the other side's cloth triangles).
+    pub vertices: bool,
+    /// Edge–edge detection on (cloth edges and hair segments against the other side's).
+    pub edges: bool,
+}
+
 /// Every collider and contact pair of a scene, and each simulated vertex's contact area.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct CollisionSetup {
@@ -86,6 +117,14 @@ pub struct CollisionSetup {
     pub colliders: Vec<ColliderSetup>,
     /// The pairs, by collision element, then member, then collider.
     pub pairs: Vec<ContactPair>,
+    /// The pairs of simulated elements that collide, by collision element, then members
+    /// (a pair made by two collision elements is kept once, the first).
+    pub solid_pairs: Vec<SolidPair>,
+    /// Per scene element, its cloth triangles as global vertex indices (empty for the rest).
+    pub triangles: Vec<Vec<[u32; 3]>>,
+    /// Per scene element, its cloth edges (each once, lower vertex first) as global vertex
+    /// indices (empty for the rest; hair's are its `segments`).
+    pub edges: Vec<Vec<[u32; 2]>>,
     /// Contact area of each global vertex [m²] (cloth: a third of its triangles' areas; hair:
     /// half its segments' lengths × the fibre's diameter).
     pub areas: Vec<f64>,
@@ -184,7 +223,7 @@ impl crate::Behavior for Collision {
                     }
                 }
             }
-            if !group.vertex_face && !group.segment_face {
+            if !group.vertex_face && !group.segment_face && !group.edge_edge {
                 b.warn(format!(
                     "collision element '{}' has no detection method on: it makes no contacts",
                     g.name
@@ -200,13 +239,49 @@ impl crate::Behavior for Collision {
                         && group.colliders.contains(&scene[i].name)
                 })
                 .collect();
-            if members.is_empty() || colliders.is_empty() {
+            let solids = group.self_collision || (group.between_members && members.len() > 1);
+            if members.is_empty() || (colliders.is_empty() && !solids) {
                 b.warn(format!(
-                    "collision element '{}' has {} member(s) and {} collider(s): it makes no contacts",
+                    "collision element '{}' has {} member(s) and {} collider(s), and its members collide neither with each other nor with themselves: it makes no contacts",
                     g.name,
                     members.len(),
                     colliders.len()
                 ));
+            }
+            for (k, &ma) in members.iter().enumerate() {
+                for &mb in &members[k..] {
+                    let wanted = if ma == mb {
+                        group.self_collision
+                    } else {
+                        group.between_members
+                    };
+                    if !wanted
+                        || setup.solid_pairs.iter().any(|p| (p.a, p.b) == (ma, mb))
+                        || !(group.vertex_face || group.edge_edge)
+                    {
+                        continue;
+                    }
+                    let sec = |m: usize| -> Result<Collider, SimError> {
+                        let c = scene[m].secs.get::<Collider>().cloned().unwrap_or_default();
+                        check_collider_sec(&scene[m].name, &c)?;
+                        Ok(c)
+                    };
+                    b.read(ma, "collider");
+                    b.read(mb, "collider");
+                    let (ca, cb) = (sec(ma)?, sec(mb)?);
+                    setup.solid_pairs.push(SolidPair {
+                        a: ma,
+                        b: mb,
+                        group: gi,
+                        friction: (ca.friction * cb.friction).sqrt(),
+                        distance: ca.thickness + cb.thickness,
+                        cohesion: ca.cohesion.max(cb.cohesion),
+                        strength: response.strength,
+                        damping: response.damping,
+                        vertices: group.vertex_face,
+                        edges: group.edge_edge,
+                    });
+                }
             }
             for &m in &members {
                 b.read(m, "collider");
@@ -251,6 +326,9 @@ impl crate::Behavior for Collision {
         }
         setup.areas = contact_areas(scene, b);
         setup.segments = hair_segments(scene, b);
+        if !setup.solid_pairs.is_empty() {
+            (setup.triangles, setup.edges) = cloth_surfaces(scene, b);
+        }
         b.collisions = Some(setup);
         Ok(())
     }
@@ -316,10 +394,26 @@ fn collider_setup(
             e.name
         ));
     }
+    let across = if closed {
+        let mut by_edge: BTreeMap<(u32, u32), u32> = BTreeMap::new();
+        for (ti, t) in triangles.iter().enumerate() {
+            for k in 0..3 {
+                by_edge.insert((t[k], t[(k + 1) % 3]), ti as u32);
+            }
+        }
+        // Closed: every directed edge's reverse is in exactly one other triangle.
+        triangles
+            .iter()
+            .map(|t| [0, 1, 2].map(|k| by_edge[&(t[(k + 1) % 3], t[k])]))
+            .collect()
+    } else {
+        Vec::new()
+    };
     Ok(ColliderSetup {
         element,
         triangles,
         closed,
+        across,
     })
 }
 
@@ -359,6 +453,35 @@ fn contact_areas(scene: &[SceneElement], b: &SystemBuilder) -> Vec<f64> {
     areas
 }
 
+/// Per element, its cloth triangles and edges (each once) in global vertex indices.
+type Surfaces = (Vec<Vec<[u32; 3]>>, Vec<Vec<[u32; 2]>>);
+
+fn cloth_surfaces(scene: &[SceneElement], b: &SystemBuilder) -> Surfaces {
+    let mut triangles = vec![Vec::new(); scene.len()];
+    let mut edges = vec![Vec::new(); scene.len()];
+    for (ei, e) in scene.iter().enumerate() {
+        let (Some(r), Geometry::Mesh(m), ElementKind::Cloth) =
+            (b.ranges.get(ei).cloned().flatten(), &*e.geometry, e.kind)
+        else {
+            continue;
+        };
+        let mut set = BTreeSet::new();
+        for t in &m.triangles {
+            if t.iter().any(|&v| v as usize >= r.len()) {
+                continue; // the material Behavior reports it
+            }
+            let g = t.map(|v| (r.start + v as usize) as u32);
+            triangles[ei].push(g);
+            for k in 0..3 {
+                let (p, q) = (g[k], g[(k + 1) % 3]);
+                set.insert([p.min(q), p.max(q)]);
+            }
+        }
+        edges[ei] = set.into_iter().collect();
+    }
+    (triangles, edges)
+}
+
 fn hair_segments(scene: &[SceneElement], b: &SystemBuilder) -> Vec<Vec<[u32; 2]>> {
     scene
         .iter()
@@ -385,9 +508,32 @@ fn hair_segments(scene: &[SceneElement], b: &SystemBuilder) -> Vec<Vec<[u32; 2]>
 /// A collider during a frame: its mesh in its own frame and the tree over it.
 struct Live {
     local: Vec<V>,
+    /// Closed meshes: each vertex's angle-weighted pseudo-normal (Bærentzen & Aanæs 2005),
+    /// which decides inside and outside where the closest point is that vertex.
+    vertex_normals: Vec<V>,
     tree: TriangleTree,
     from: Option<Transform>,
     to: Option<Transform>,
+}
+
+/// The angle-weighted pseudo-normal of every vertex of a closed mesh (empty for open ones).
+fn vertex_normals(c: &ColliderSetup, p: &[V]) -> Vec<V> {
+    if !c.closed {
+        return Vec::new();
+    }
+    let mut n = vec![V::zeros(); p.len()];
+    for t in &c.triangles {
+        let x = t.map(|v| p[v as usize]);
+        let face = face_normal(&x);
+        for k in 0..3 {
+            let (e1, e2) = (x[(k + 1) % 3] - x[k], x[(k + 2) % 3] - x[k]);
+            let angle = e1.angle(&e2);
+            if angle.is_finite() {
+                n[t[k] as usize] += angle * face;
+            }
+        }
+    }
+    n
 }
 
 impl Live {
@@ -452,6 +598,7 @@ impl Detector {
                 let local = local_positions(e, e.transform);
                 let tree = TriangleTree::new(&local, &c.triangles);
                 Live {
+                    vertex_normals: vertex_normals(c, &local),
                     local,
                     tree,
                     from: e.transform,
@@ -497,6 +644,7 @@ impl Detector {
                 }
                 live.local = local;
                 live.tree.refit(&live.local, &c.triangles);
+                live.vertex_normals = vertex_normals(c, &live.local);
             }
         }
         Ok(())
@@ -542,7 +690,7 @@ impl Detector {
                 && d <= reach
             {
                 keys.insert((i as u32, pair.collider as u32, t, VERTEX));
-                out.push(contact(setup, &at, t, w, x0, h));
+                out.push(contact(setup, &at, (t, w), x0, h, None));
             }
         });
         // Hair segments: the closest triangle within reach whose closest point is inside the
@@ -624,10 +772,15 @@ impl Detector {
                 live.tree
                     .query(&(a.inf(&b) - pad), &(a.sup(&b) + pad), candidates);
                 candidates.sort_unstable();
+                // Inside or outside is the nearest triangle's call, not each candidate's.
+                let (inside_a, inside_b) = (
+                    inside_closed(c, live, candidates, &a),
+                    inside_closed(c, live, candidates, &b),
+                );
                 for &t in candidates.iter() {
                     let tri = live.triangle(c, t);
                     let wb = closest_on_triangle(&b, &tri[0], &tri[1], &tri[2]);
-                    let (_, signed) = side(c, live, t, &wb, &b, &b);
+                    let (_, signed) = side(c, live, t, &wb, (&b, &b), inside_b);
                     let clearance = signed - pair.distance;
                     if !keys.insert((i as u32, pair.collider as u32, t, VERTEX)) {
                         // Its contact holds it (to the solver's tolerance): measure only.
@@ -638,7 +791,7 @@ impl Detector {
                         && (!c.closed || face_normal(&tri).dot(&(b - a)) < 0.0);
                     if crossed || clearance < -1e-3 * pair.distance {
                         let wa = closest_on_triangle(&a, &tri[0], &tri[1], &tri[2]);
-                        contacts.push(contact(setup, &at, t, wa, x0, h));
+                        contacts.push(contact(setup, &at, (t, wa), x0, h, inside_a));
                         added += 1;
                         let depth = if crossed { pair.distance } else { -clearance };
                         deepest = deepest.max(depth);
@@ -784,12 +937,32 @@ fn face_normal(tri: &[V; 3]) -> V {
         .unwrap_or_else(V::zeros)
 }
 
+/// Whether `p` is inside closed collider `c`, by the pseudo-normal of its nearest triangle
+/// of `candidates` (`None` for open meshes or no candidates). The candidates must include
+/// every triangle nearer to `p` than the ones the caller judges.
+fn inside_closed(c: &ColliderSetup, live: &Live, candidates: &[u32], p: &V) -> Option<bool> {
+    if !c.closed {
+        return None;
+    }
+    let (_, t, w) = nearest(c, live, candidates, p)?;
+    Some(side(c, live, t, &w, (p, p), None).1 < 0.0)
+}
+
 /// The contact normal (local frame, unit) of the point `a` against triangle `t` at its closest
 /// point (weights `w`), and `a`'s signed distance to the triangle. Closed meshes: a point
 /// behind the face is inside (negative distance) and pushed out through it. Open meshes: the
 /// normal points from the surface to the point; a point on the surface is kept on the side
-/// it comes from (against its motion towards `b`).
-fn side(c: &ColliderSetup, live: &Live, t: u32, w: &[f64; 3], a: &V, b: &V) -> (V, f64) {
+/// it comes from (against its motion towards `b`). `inside`: whether `a` is inside a closed
+/// mesh, decided by its nearest triangle ([`inside_closed`]) when `t` may not be that one (a
+/// triangle's own side is only meaningful for the nearest).
+fn side(
+    c: &ColliderSetup,
+    live: &Live,
+    t: u32,
+    w: &[f64; 3],
+    (a, b): (&V, &V),
+    inside: Option<bool>,
+) -> (V, f64) {
     let tri = live.triangle(c, t);
     let q = w[0] * tri[0] + w[1] * tri[1] + w[2] * tri[2];
     let nf = face_normal(&tri);
@@ -798,7 +971,19 @@ fn side(c: &ColliderSetup, live: &Live, t: u32, w: &[f64; 3], a: &V, b: &V) -> (
     let scale = tri.iter().fold(a.amax(), |m, p| m.max(p.amax()));
     let tiny = d <= 1e-12 * scale.max(1.0);
     if c.closed {
-        let inside = nf.dot(&diff) < 0.0;
+        // Inside is behind the pseudo-normal of the feature the closest point is on (face,
+        // edge or vertex; Bærentzen & Aanæs 2005): behind a face's plane near a convex edge
+        // is still outside (a vertex beside a box's side, below its top).
+        let zero: Vec<usize> = (0..3).filter(|&k| w[k] <= 1e-12).collect();
+        let pseudo = match zero[..] {
+            [k] => {
+                let j = (k + 1) % 3; // the edge opposite corner k
+                nf + face_normal(&live.triangle(c, c.across[t as usize][j]))
+            }
+            [k0, k1] => live.vertex_normals[c.triangles[t as usize][3 - k0 - k1] as usize],
+            _ => nf,
+        };
+        let inside = inside.unwrap_or(pseudo.dot(&diff) < 0.0);
         match (tiny, inside) {
             (true, _) => (nf, -d),
             (false, true) => (-diff / d, -d),
@@ -813,7 +998,14 @@ fn side(c: &ColliderSetup, live: &Live, t: u32, w: &[f64; 3], a: &V, b: &V) -> (
 
 /// The contact of a vertex with triangle `t` (closest point weights `w` at the step's start
 /// position, local): the plane through the closest point, carried by the collider.
-fn contact(setup: &CollisionSetup, at: &At<'_>, t: u32, w: [f64; 3], x0: &[V], h: f64) -> Contact {
+fn contact(
+    setup: &CollisionSetup,
+    at: &At<'_>,
+    (t, w): (u32, [f64; 3]),
+    x0: &[V],
+    h: f64,
+    inside: Option<bool>,
+) -> Contact {
     let i = at.vertex;
     let (pair, c, live) = (at.pair, at.collider, at.live);
     Contact {
@@ -829,6 +1021,7 @@ fn contact(setup: &CollisionSetup, at: &At<'_>, t: u32, w: [f64; 3], x0: &[V], h
             h,
             &[(i as u32, 1.0)],
             false,
+            inside,
         )
     }
 }
@@ -851,8 +1044,9 @@ fn plane(
     h: f64,
     points: &[(u32, f64)],
     outside: bool,
+    inside: Option<bool>,
 ) -> Contact {
-    let (n_local, _) = side(c, live, t, &w, a, b);
+    let (n_local, _) = side(c, live, t, &w, (a, b), inside);
     let tri = live.triangle(c, t);
     let q = w[0] * tri[0] + w[1] * tri[1] + w[2] * tri[2];
     let n_local = match (a - q).try_normalize(1e-12 * a.amax().max(1.0)) {
@@ -952,5 +1146,6 @@ fn segment_contact(sg: &SegmentAt<'_>, s: f64, t: u32, w: [f64; 3], x0: &[V], h:
         h,
         &points,
         true,
+        None,
     )
 }

@@ -2,6 +2,7 @@
 //! [`crate::SolidStepper`] and the coupled solver's stage C): detect, solve, check every path
 //! exactly, and solve again from the start with the contacts the check added.
 
+use super::solids::Solids;
 use super::{Detector, MAX_ROUNDS};
 use crate::build::Compiled;
 use crate::error::SimError;
@@ -31,6 +32,18 @@ pub struct ContactFrameStats {
     pub detection_seconds: f64,
     /// Seconds in the ADMM loops (their solves, contact projections and refactorizations).
     pub admm_seconds: f64,
+    /// Steps retried with a smaller step because continuous detection found primitives of
+    /// the solids passing through each other after the last re-solve.
+    pub crossing_retries: usize,
+    /// Steps cut back to the last time continuous detection proved free of crossings (at
+    /// the smallest step allowed, or in a coupling iteration, which is not retried).
+    pub cut_backs: usize,
+    /// Most pairs of primitives found touching at a step's start (their crossing cannot be
+    /// judged: a scene that starts intersecting).
+    pub started_inside: usize,
+    /// Steps whose solves rebuilt the system's pattern for contacts between solids (blocks
+    /// between vertices that share no element), counted per solve.
+    pub pattern_rebuilds: usize,
 }
 
 /// The contact machinery of a compiled scene that has contact pairs: the detector and the
@@ -39,6 +52,7 @@ pub struct ContactFrameStats {
 pub struct Contacts {
     compiled: Arc<Compiled>,
     detector: Detector,
+    solids: Option<Solids>,
     contacts: Vec<Contact>,
     /// ADMM iterations allowed per Newton iteration.
     pub max_admm: usize,
@@ -48,10 +62,13 @@ impl Contacts {
     /// The machinery for `compiled` as its colliders are in `scene`; `None` when the scene
     /// has no contact pairs (nothing is built).
     pub fn new(compiled: Arc<Compiled>, scene: &[SceneElement], max_admm: usize) -> Option<Self> {
-        let detector = Detector::new(compiled.collisions.as_ref()?, scene);
+        let setup = compiled.collisions.as_ref()?;
+        let detector = Detector::new(setup, scene);
+        let solids = Solids::new(setup, &compiled.ranges);
         Some(Contacts {
             compiled,
             detector,
+            solids,
             contacts: Vec::new(),
             max_admm,
         })
@@ -73,7 +90,11 @@ impl Contacts {
     /// fractions `s0` and `s1` of the frame, held vertices at `targets`, Newton from `guess`
     /// when given: contacts detected from the start, then the exact check of every path after
     /// each solve adds the contacts it missed and the step is solved again from the start (at
-    /// most `MAX_ROUNDS` solves; the last one's penetration is reported). Counts go to `cs`.
+    /// most `MAX_ROUNDS` solves; the last one's penetration is reported). If primitives of the
+    /// solids still pass through each other, the step fails with
+    /// [`StepError::Intersecting`] so that the caller retries it smaller, unless `last_try`:
+    /// then the free vertices are cut back to the last time continuous detection proved safe.
+    /// Counts go to `cs`.
     #[allow(clippy::too_many_arguments)]
     pub fn step(
         &mut self,
@@ -84,6 +105,7 @@ impl Contacts {
         guess: Option<&[Vector3<f64>]>,
         (s0, s1, h): (f64, f64, f64),
         settings: &Settings,
+        last_try: bool,
         cs: &mut ContactFrameStats,
     ) -> Result<StepStats, StepError> {
         let c = &*self.compiled;
@@ -98,6 +120,9 @@ impl Contacts {
             (s0, s1, h),
             &mut self.contacts,
         );
+        if let Some(solids) = &mut self.solids {
+            solids.detect(setup, &sys.pinned, &st.x, &st.v, h, &mut self.contacts);
+        }
         cs.detection_seconds += t.elapsed().as_secs_f64();
         let mut round = 0;
         loop {
@@ -117,8 +142,9 @@ impl Contacts {
             )?;
             cs.admm_iterations += contact.admm_iterations;
             cs.admm_seconds += contact.admm_seconds;
+            cs.pattern_rebuilds += usize::from(contact.pattern_rebuilt);
             let t = Instant::now();
-            let (added, penetration) = self.detector.check(
+            let (mut added, mut penetration) = self.detector.check(
                 setup,
                 &c.ranges,
                 &sys.pinned,
@@ -127,9 +153,34 @@ impl Contacts {
                 (s0, s1, h),
                 &mut self.contacts,
             );
+            let mut crossing = (0, 1.0);
+            if let Some(solids) = &mut self.solids {
+                let k = solids.check(setup, &sys.pinned, &st.x, &trial.x, h, &mut self.contacts);
+                added += k.added;
+                penetration = penetration.max(k.deepest);
+                crossing = (k.crossing, k.toi);
+                cs.started_inside = cs.started_inside.max(k.started_inside);
+            }
             cs.detection_seconds += t.elapsed().as_secs_f64();
             round += 1;
             if added == 0 || round == MAX_ROUNDS {
+                if crossing.0 > 0 {
+                    if !last_try {
+                        cs.crossing_retries += 1;
+                        return Err(StepError::Intersecting { pairs: crossing.0 });
+                    }
+                    // Back along the straight paths to the time they were proven apart;
+                    // held vertices keep their targets.
+                    cs.cut_backs += 1;
+                    for (i, (x, x0)) in trial.x.iter_mut().zip(&st.x).enumerate() {
+                        if !sys.pinned[i] {
+                            *x = x0 + crossing.1 * (*x - x0);
+                        }
+                    }
+                    for ((v, x), x0) in trial.v.iter_mut().zip(&trial.x).zip(&st.x) {
+                        *v = (x - x0) / h;
+                    }
+                }
                 cs.max_contacts = cs.max_contacts.max(self.contacts.len());
                 cs.contacts += self.contacts.len();
                 cs.max_penetration = cs.max_penetration.max(penetration);

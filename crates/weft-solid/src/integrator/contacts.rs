@@ -5,8 +5,8 @@
 //! ADMM on the split z_c = H_c v, H_c v = R_c(Σⱼ wⱼ vⱼ − v_c) the relative velocity of a
 //! contact's point (a vertex, or a point between vertices) in its frame. Newton outside:
 //! assemble the incremental potential's Hessian at x, add ρ_c/h² (w wᵀ ⊗ I) on the contact's
-//! vertex blocks (RᵀR = I; its majorant when its vertices share no element, so the pattern is
-//! always the elements', see [`Active`]) and
+//! vertex blocks (RᵀR = I; blocks between vertices that share no element, as between two
+//! solids, are added to the pattern for the step: `Integrator::ensure_extra`) and
 //! factor once. ADMM inside on that Newton model: each primal step is one solve with the same
 //! factor (only the right-hand side changes), each contact step the closed-form
 //! [`solve_local`]. The stationarity of the primal objective E(x) + Σ ρ_c/2 ‖H_c v − z_c −
@@ -25,10 +25,8 @@ pub const CONTACT_VERTICES: usize = 4;
 
 /// A point of a solid touching a kinematic collider. The point is Σ wⱼ xⱼ over the contact's
 /// vertices (a vertex: one weight 1; a point on a hair segment: (1 − s, s)); an entry of
-/// weight 0 is unused. The vertices may belong to different solids (a point of one minus a
-/// point of the other, with `velocity` zero): vertices that share no element are coupled
-/// through a majorant of the contact's term (see [`Active`]), so the system's pattern never
-/// changes.
+/// weight 0 is unused. The vertices may belong to different solids (a point of one less a
+/// point of the other, `velocity` zero): the step adds the blocks its matrix lacks.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Contact {
     /// The vertices the point is made of.
@@ -90,23 +88,13 @@ impl Contact {
 }
 
 /// A contact as the ADMM sees it: its moving vertices and where their blocks are.
-///
-/// Its vertices are split into groups whose every pair has a block in the pattern (one group
-/// when they share an element). With k > 1 groups, (Σ_g a_g)² ≤ k Σ_g a_g² (Cauchy–Schwarz)
-/// gives the majorant k Σ_g W_gᵀ M W_g of the contact's term Wᵀ M W, which fits the pattern:
-/// the factor of the majorized matrix preconditions conjugate gradients on the true one
-/// (`Integrator::solve_split`), so the ADMM's primal steps stay exact.
 struct Active<'a> {
     c: &'a Contact,
     /// (free index, weight) of the vertices that move.
     free: [(usize, f64); CONTACT_VERTICES],
     count: usize,
-    /// The group of each free entry.
-    group: [usize; CONTACT_VERTICES],
-    /// Number of groups k (1: the contact's term is exact in the matrix).
-    groups: usize,
-    /// `base[p][q]` (p, q in one group): the value index of entry (3 f_p, 3 f_q) less its
-    /// column's start, so entry (a, b) of that block is at `col_ptr[3 f_q + b] + base[p][q] + a`.
+    /// `base[p][q]`: the value index of entry (3 f_p, 3 f_q) less its column's start, so
+    /// entry (a, b) of that block is at `col_ptr[3 f_q + b] + base[p][q] + a`.
     base: [[usize; CONTACT_VERTICES]; CONTACT_VERTICES],
     /// Σ |wⱼ| mⱼ: the point's mass for its damping.
     mass: f64,
@@ -115,17 +103,6 @@ struct Active<'a> {
 impl Active<'_> {
     fn free(&self) -> &[(usize, f64)] {
         &self.free[..self.count]
-    }
-
-    /// Per group g: Σ_{j ∈ g} wⱼ δⱼ of the displacement `delta` (free DOFs), and their sum.
-    fn moved(&self, delta: &[f64]) -> ([Vector3<f64>; CONTACT_VERTICES], Vector3<f64>) {
-        let mut by_group = [Vector3::zeros(); CONTACT_VERTICES];
-        for (p, &(f, w)) in self.free().iter().enumerate() {
-            by_group[self.group[p]] +=
-                w * Vector3::new(delta[3 * f], delta[3 * f + 1], delta[3 * f + 2]);
-        }
-        let total = by_group[..self.groups].iter().sum();
-        (by_group, total)
     }
 }
 
@@ -152,9 +129,9 @@ pub struct ContactStats {
     pub admm_iterations: usize,
     /// Refactorizations made to rebalance ρ between ADMM's residuals.
     pub refactorizations: usize,
-    /// Conjugate-gradient iterations for contacts between vertices that share no element
-    /// (each one solve with the factor), summed.
-    pub pcg_iterations: usize,
+    /// Whether the pattern was rebuilt for blocks between vertices that share no element
+    /// (contacts between solids) this step.
+    pub pattern_rebuilt: bool,
     /// Seconds in the ADMM loops (their solves, contact projections and refactorizations).
     pub admm_seconds: f64,
     /// The largest distance from Coulomb's law at the end (`contact::residual`, as a
@@ -173,6 +150,35 @@ impl Integrator {
         self.row_idx[lo..hi].binary_search(&(3 * fa)).ok()
     }
 
+    /// The blocks `contacts` need beyond the elements' (free index pairs, sorted, lower
+    /// first): pairs of a contact's moving vertices that share no element.
+    fn contact_blocks(&self, contacts: &[Contact]) -> Vec<(u32, u32)> {
+        let mut need = Vec::new();
+        for c in contacts {
+            let free: Vec<u32> = c
+                .vertices
+                .iter()
+                .zip(&c.weights)
+                .filter(|&(&v, &w)| w != 0.0 && w.is_finite() && (v as usize) < self.n)
+                .map(|(&v, _)| self.free_of[v as usize])
+                .filter(|&f| f != NONE)
+                .collect();
+            for (p, &a) in free.iter().enumerate() {
+                for &b in &free[p + 1..] {
+                    let key = (a.min(b), a.max(b));
+                    let element = self.block_base(a as usize, b as usize).is_some()
+                        && self.extra.binary_search(&key).is_err();
+                    if !element && a != b {
+                        need.push(key);
+                    }
+                }
+            }
+        }
+        need.sort_unstable();
+        need.dedup();
+        need
+    }
+
     /// The contacts that move something, with their blocks; `index` maps each back to
     /// `contacts`.
     fn activate<'a>(
@@ -187,8 +193,6 @@ impl Integrator {
                 c,
                 free: [(0, 0.0); CONTACT_VERTICES],
                 count: 0,
-                group: [0; CONTACT_VERTICES],
-                groups: 0,
                 base: [[0; CONTACT_VERTICES]; CONTACT_VERTICES],
                 mass: 0.0,
             };
@@ -212,26 +216,16 @@ impl Integrator {
             if !valid || a.count == 0 {
                 continue;
             }
-            // Greedy groups: each free entry joins the first group it has a block with every
-            // member of (the pattern is symmetric), else starts one.
-            for p in 0..a.count {
-                let fp = a.free[p].0;
-                let g = (0..a.groups)
-                    .find(|&g| {
-                        (0..p)
-                            .all(|q| a.group[q] != g || self.block_base(fp, a.free[q].0).is_some())
-                    })
-                    .unwrap_or(a.groups);
-                a.group[p] = g;
-                a.groups = a.groups.max(g + 1);
-            }
             for p in 0..a.count {
                 for q in 0..a.count {
-                    if a.group[p] == a.group[q] {
-                        a.base[p][q] = self
-                            .block_base(a.free[p].0, a.free[q].0)
-                            .expect("grouped entries share a block");
-                    }
+                    a.base[p][q] = self
+                        .block_base(a.free[p].0, a.free[q].0)
+                        .ok_or_else(|| {
+                            StepError::Factorization(format!(
+                                "contact {k}: its vertices {:?} share no element, so the system has no block for them",
+                                c.vertices
+                            ))
+                        })?;
                 }
             }
             index.push(k);
@@ -240,15 +234,10 @@ impl Integrator {
         Ok((index, active))
     }
 
-    /// Adds `scale` × (w wᵀ ⊗ m) to the contact's blocks: m a 3×3 (by rows, a then b). With
-    /// k > 1 groups, its majorant k Σ_g (w_g w_gᵀ ⊗ m) (see [`Active`]).
+    /// Adds `scale` × (w wᵀ ⊗ m) to the contact's blocks: m a 3×3 (by rows, a then b).
     fn add_contact_blocks(&mut self, a: &Active<'_>, scale: f64, m: &Matrix3<f64>) {
-        let scale = scale * a.groups as f64;
         for (p, &(_, wp)) in a.free().iter().enumerate() {
             for (q, &(fq, wq)) in a.free().iter().enumerate() {
-                if a.group[p] != a.group[q] {
-                    continue;
-                }
                 for bb in 0..3 {
                     let col = self.col_ptr[3 * fq + bb] + a.base[p][q];
                     for aa in 0..3 {
@@ -274,6 +263,8 @@ impl Integrator {
     ) -> Result<(StepStats, ContactStats), StepError> {
         let (contacts, max_admm) = (set.contacts, set.max_admm);
         sys.check(state)?;
+        // First: a rebuild resets every work buffer (the prediction's among them).
+        let rebuilt = self.ensure_extra(sys, self.contact_blocks(contacts))?;
         let x0 = state.x.clone();
         let target = |i: usize| pinned_to.map_or(x0[i], |p| p[i]);
         let guess = set.guess.filter(|g| {
@@ -299,13 +290,12 @@ impl Integrator {
             })
             .collect();
         let mut stats = StepStats::default();
-        let mut cstats = ContactStats::default();
+        let mut cstats = ContactStats {
+            pattern_rebuilt: rebuilt,
+            ..Default::default()
+        };
         let dofs = 3 * self.n_free;
         let mut delta = vec![0.0; dofs];
-        let mut rhs = vec![0.0; dofs];
-        // Some contact's term is majorized (its vertices share no element): see [`Active`].
-        let split = active.iter().any(|a| a.groups > 1);
-        let mut pcg = if split { Pcg::new(dofs) } else { Pcg::new(0) };
         // The velocity each contact's term pulls its point towards in the last primal step.
         let mut want = vec![Vector3::zeros(); active.len()];
         // Each contact point's velocity at the Newton iterate (fixed during an ADMM loop).
@@ -363,28 +353,27 @@ impl Integrator {
                     return Err(StepError::Interrupted { iteration: it });
                 }
                 cstats.admm_iterations += 1;
+                for (d, g) in delta.iter_mut().zip(&self.grad) {
+                    *d = -g;
+                }
                 for (k, a) in active.iter().enumerate() {
+                    let v = vel[k];
                     want[k] = a.c.velocity + a.c.frame.transpose() * (z[k] + r[k] / rho[k]);
-                }
-                contact_rhs(&active, &vel, &want, &rho, h, &self.grad, &mut rhs);
-                if split {
-                    // From the last round's step: it changes little once ADMM settles.
-                    if round == 0 {
-                        delta.fill(0.0);
+                    let g = rho[k] / h * (v - want[k]) + damping_force(a, v);
+                    for &(f, w) in a.free() {
+                        for aa in 0..3 {
+                            delta[3 * f + aa] -= w * g[aa];
+                        }
                     }
-                    let tol = 0.1 * settings.tolerance * h;
-                    let n = self.solve_split(
-                        &mut stats, &active, &rho, h, &rhs, &mut delta, tol, &mut pcg,
-                    );
-                    cstats.pcg_iterations += n;
-                } else {
-                    delta.copy_from_slice(&rhs);
-                    self.solve_in_place(&mut stats, &mut delta);
                 }
+                self.solve_in_place(&mut stats, &mut delta);
                 let (mut primal, mut dual) = (0.0f64, 0.0f64);
                 for (k, a) in active.iter().enumerate() {
                     let c = a.c;
-                    let (_, moved) = a.moved(&delta);
+                    let mut moved = Vector3::zeros();
+                    for &(f, w) in a.free() {
+                        moved += w * Vector3::new(delta[3 * f], delta[3 * f + 1], delta[3 * f + 2]);
+                    }
                     let hv = c.frame * (vel[k] + moved / h - c.velocity);
                     let mut w = hv - r[k] / rho[k];
                     // u_N ≥ −gap/h: the same law for w shifted by the gap.
@@ -437,29 +426,13 @@ impl Integrator {
                 }
                 e
             };
-            let slope_of = |grad: &[f64], delta: &[f64]| {
-                let mut slope: f64 = grad.iter().zip(delta).map(|(g, d)| g * d).sum();
-                for (k, a) in active.iter().enumerate() {
-                    let v = vel[k];
-                    let g = rho[k] / h * (v - want[k]) + damping_force(a, v);
-                    for &(f, w) in a.free() {
-                        slope += w * (0..3).map(|aa| g[aa] * delta[3 * f + aa]).sum::<f64>();
-                    }
+            let mut slope: f64 = self.grad.iter().zip(&delta).map(|(g, d)| g * d).sum();
+            for (k, a) in active.iter().enumerate() {
+                let v = vel[k];
+                let g = rho[k] / h * (v - want[k]) + damping_force(a, v);
+                for &(f, w) in a.free() {
+                    slope += w * (0..3).map(|aa| g[aa] * delta[3 * f + aa]).sum::<f64>();
                 }
-                slope
-            };
-            let mut slope = slope_of(&self.grad, &delta);
-            if slope >= 0.0 && split {
-                // Conjugate gradients from the last round's step decrease the model from
-                // there, not from 0; from 0 every iterate descends.
-                contact_rhs(&active, &vel, &want, &rho, h, &self.grad, &mut rhs);
-                delta.fill(0.0);
-                let tol = 0.1 * settings.tolerance * h;
-                let n = self.solve_split(
-                    &mut stats, &active, &rho, h, &rhs, &mut delta, tol, &mut pcg,
-                );
-                cstats.pcg_iterations += n;
-                slope = slope_of(&self.grad, &delta);
             }
             let e0 = phi(self, &x);
             let xmax = x.iter().fold(0.0f64, |m, p| m.max(p.amax()));
@@ -512,157 +485,6 @@ impl Integrator {
         }
         state.x = x;
         Ok((stats, cstats))
-    }
-}
-
-/// The right-hand side of an ADMM primal step into `out`: −∇E − Σ_c Wᵀ(ρ_c/h (v_c − want_c)
-/// + damping).
-fn contact_rhs(
-    active: &[Active<'_>],
-    vel: &[Vector3<f64>],
-    want: &[Vector3<f64>],
-    rho: &[f64],
-    h: f64,
-    grad: &[f64],
-    out: &mut [f64],
-) {
-    for (d, g) in out.iter_mut().zip(grad) {
-        *d = -g;
-    }
-    for (k, a) in active.iter().enumerate() {
-        let v = vel[k];
-        let g = rho[k] / h * (v - want[k]) + damping_force(a, v);
-        for &(f, w) in a.free() {
-            for aa in 0..3 {
-                out[3 * f + aa] -= w * g[aa];
-            }
-        }
-    }
-}
-
-/// Adds Q x to `out`, Q = Σ_c (P_maj − P)_c over the split contacts: P = Wᵀ M_c W the
-/// contact term's curvature (M_c = ρ_c/h² I + (c m/h) n nᵀ), P_maj its majorant in the
-/// matrix (see [`Active`]). The system's true matrix is the factored one less Q.
-fn add_split_excess(active: &[Active<'_>], rho: &[f64], h: f64, x: &[f64], out: &mut [f64]) {
-    for (k, a) in active.iter().enumerate().filter(|(_, a)| a.groups > 1) {
-        let n = a.c.frame.row(0).transpose();
-        let curvature =
-            |u: Vector3<f64>| rho[k] / (h * h) * u + a.c.damping * a.mass / h * n.dot(&u) * n;
-        let (moved, total) = a.moved(x);
-        let mut by_group = [Vector3::zeros(); CONTACT_VERTICES];
-        for (g, b) in by_group[..a.groups].iter_mut().enumerate() {
-            *b = curvature(a.groups as f64 * moved[g] - total);
-        }
-        for (p, &(f, w)) in a.free().iter().enumerate() {
-            let b = by_group[a.group[p]];
-            for aa in 0..3 {
-                out[3 * f + aa] += w * b[aa];
-            }
-        }
-    }
-}
-
-/// Work vectors of the conjugate gradients, allocated once per step.
-struct Pcg {
-    r: Vec<f64>,
-    z: Vec<f64>,
-    p: Vec<f64>,
-    ap: Vec<f64>,
-}
-
-impl Pcg {
-    fn new(dofs: usize) -> Self {
-        Pcg {
-            r: vec![0.0; dofs],
-            z: vec![0.0; dofs],
-            p: vec![0.0; dofs],
-            ap: vec![0.0; dofs],
-        }
-    }
-}
-
-/// Conjugate-gradient iterations allowed per primal step: each is one solve with the factor.
-const MAX_PCG: usize = 64;
-
-impl Integrator {
-    /// y = A x with A the stored (factored) matrix, both triangles stored.
-    fn matvec(&self, x: &[f64], y: &mut [f64]) {
-        y.fill(0.0);
-        for (col, &xc) in x.iter().enumerate() {
-            if xc == 0.0 {
-                continue;
-            }
-            for k in self.col_ptr[col]..self.col_ptr[col + 1] {
-                y[self.row_idx[k]] += self.values[k] * xc;
-            }
-        }
-    }
-
-    /// Solves the primal step's true system (the factored matrix less the split contacts'
-    /// excess Q) for `delta`, from its value on entry, by conjugate gradients preconditioned
-    /// with the factor (which is exact but for Q: its preconditioned spectrum lies in (0, 1],
-    /// away from 1 only in the split contacts' few directions). Stops when an iteration moves
-    /// no DOF by more than `tol`. Returns the iterations.
-    #[allow(clippy::too_many_arguments)]
-    fn solve_split(
-        &mut self,
-        stats: &mut StepStats,
-        active: &[Active<'_>],
-        rho: &[f64],
-        h: f64,
-        rhs: &[f64],
-        delta: &mut [f64],
-        tol: f64,
-        w: &mut Pcg,
-    ) -> usize {
-        // r = rhs − (A − Q) δ
-        self.matvec(delta, &mut w.ap);
-        for ((r, b), a) in w.r.iter_mut().zip(rhs).zip(&w.ap) {
-            *r = b - a;
-        }
-        add_split_excess(active, rho, h, delta, &mut w.r);
-        w.z.copy_from_slice(&w.r);
-        self.solve_in_place(stats, &mut w.z);
-        w.p.copy_from_slice(&w.z);
-        let mut rz: f64 = w.r.iter().zip(&w.z).map(|(a, b)| a * b).sum();
-        for it in 0..MAX_PCG {
-            if rz.is_nan() || rz <= 0.0 {
-                return it;
-            }
-            self.matvec(&w.p, &mut w.ap);
-            for a in w.ap.iter_mut() {
-                *a = -*a;
-            }
-            add_split_excess(active, rho, h, &w.p, &mut w.ap);
-            // ap now holds −(A − Q) p.
-            let pap: f64 = -w.p.iter().zip(&w.ap).map(|(a, b)| a * b).sum::<f64>();
-            if pap.is_nan() || pap <= 0.0 {
-                return it;
-            }
-            let alpha = rz / pap;
-            let mut moved = 0.0f64;
-            for ((d, r), (p, ap)) in delta
-                .iter_mut()
-                .zip(w.r.iter_mut())
-                .zip(w.p.iter().zip(&w.ap))
-            {
-                *d += alpha * p;
-                *r += alpha * ap;
-                moved = moved.max((alpha * p).abs());
-            }
-            if moved <= tol {
-                return it + 1;
-            }
-            w.z.copy_from_slice(&w.r);
-            self.solve_in_place(stats, &mut w.z);
-            let rz_next: f64 = w.r.iter().zip(&w.z).map(|(a, b)| a * b).sum();
-            let beta = rz_next / rz;
-            rz = rz_next;
-            for (p, z) in w.p.iter_mut().zip(&w.z) {
-                *p = z + beta * *p;
-            }
-        }
-        MAX_PCG
     }
 }
 
@@ -884,8 +706,8 @@ mod tests {
         let (s, _) = run(0.25, 20);
         let point = 0.75 * s.x[0].y + 0.25 * s.x[1].y;
         assert!(point.abs() < 1e-9 && s.x[1].y < -1e-3, "{point} {:?}", s.x);
-        // Without the stretch the vertices share no block: the majorized term (two groups)
-        // converges to the same answer.
+        // Without the stretch the vertices share no element: the step adds their block to
+        // the pattern for it, and the answer is the same.
         let (sys, mut s) = bar(false);
         let mut integ = Integrator::new(&sys).unwrap();
         let c = Contact {
@@ -985,7 +807,6 @@ mod tests {
         let p: Vector3<f64> = s.v.iter().sum();
         assert!((p - Vector3::new(0.0, -2.0, 0.0)).amax() < 1e-9, "{p}");
         assert!(cs.impulses[0][0] > 0.0);
-        assert!(cs.pcg_iterations > 0, "the split path ran");
     }
 
     /// Nonlinear with contacts: a stiff chain (4 segments of 0.1 m, EA = 10⁴ N, 10 g a

@@ -1,0 +1,541 @@
+//! Contacts between deforming solids (issue 14): cloth on cloth, hair on hair, hair on cloth,
+//! and each with itself, as the Collision Group SEC asks.
+//!
+//! **Primitives.** Vertices against cloth triangles (vertex–face), and cloth edges and hair
+//! segments against each other (edge–edge): every intersection of two such surfaces or
+//! curves starts with one of these two touching. Primitives that share a vertex never
+//! collide (a triangle and its own corner, two edges of one triangle, consecutive segments).
+//!
+//! **Broad phase.** Three parry3d-f64 trees (vertices, triangles, edges) over the
+//! primitives' boxes swept over the step and padded by half the distance kept; built once,
+//! refit every detection; pairs come from traversing two trees together (edges against
+//! themselves).
+//!
+//! **Detection before the step**, from the start positions and the predicted ends
+//! (x⁰ + h v⁰): each vertex within reach of a triangle of another solid (or a non-adjacent one
+//! of its own) gets a contact with the nearest such triangle per element, and with any other
+//! whose closest point is inside its face (a vertex between two layers of one skirt); each
+//! hair segment gets one with the nearest edge or segment per strand or cloth element within
+//! reach (hair has no faces). A contact's point is the difference of the two primitives'
+//! closest points at the start, Σ wⱼ xⱼ with weights (1, −b₀, −b₁, −b₂) or (1 − s, s, −(1 − t),
+//! −t), its normal from the second to the first, its constraint n·(p_a − p_b) ≥ distance at
+//! the end of the step, linearized at the start; the solver shares each impulse between the
+//! two sides by these weights.
+//!
+//! **Check after each solve**: every pair whose swept boxes meet is tested by continuous
+//! detection ([`super::ccd`], conservative). A pair without a contact whose path comes within
+//! the distance gets one and the step is solved again (cloth edges crossing between vertices
+//! are found here). Any pair whose path comes within a tenth of the distance (or half its
+//! starting clearance, if less) is **crossing**: the caller then retries with a smaller step,
+//! and at the smallest cuts the step back to the last time continuous detection proved safe.
+//! A pair that starts touching (closer than 10⁻⁶ of the distance) cannot be judged and is
+//! counted as starting inside instead.
+
+use super::bvh::BoxTree;
+use super::ccd::{self, PairKind};
+use super::geometry::{closest_on_triangle, closest_segment_segment, frame};
+use super::{CollisionSetup, SolidPair};
+use nalgebra::Vector3;
+use std::collections::{BTreeMap, BTreeSet};
+use std::ops::Range;
+use weft_solid::integrator::Contact;
+
+type V = Vector3<f64>;
+
+const NONE: u32 = u32::MAX;
+
+/// Key of a vertex–face contact: (vertex, triangle index).
+const VT: u8 = 0;
+/// Key of an edge–edge contact: (lower edge index, higher edge index).
+const EE: u8 = 1;
+
+/// What the check after a solve found.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub(crate) struct Checked {
+    /// Contacts added (their pairs' paths came within the distance).
+    pub added: usize,
+    /// Largest amount by which a pair ends closer than its distance [m].
+    pub deepest: f64,
+    /// Pairs whose paths come within a tenth of their distance: the step is not accepted.
+    pub crossing: usize,
+    /// The earliest conservative time of impact among them (fraction of the step).
+    pub toi: f64,
+    /// Pairs that start touching (cannot be judged).
+    pub started_inside: usize,
+}
+
+/// The contacts between deforming solids of a compiled scene (see the module doc). Holds no
+/// simulation state: its trees and buffers are rebuilt from each step's positions.
+pub(crate) struct Solids {
+    /// Elements (lower, higher) → index into `CollisionSetup::solid_pairs`.
+    pair_of: BTreeMap<(u32, u32), usize>,
+    /// Per global vertex, its scene element (`NONE`: not simulated).
+    element_of: Vec<u32>,
+    /// Vertices that some pair detects against triangles.
+    verts: Vec<u32>,
+    tris: Vec<[u32; 3]>,
+    edges: Vec<[u32; 2]>,
+    /// Per edge: the group its nearest-per-group choice is made in (a hair strand's first
+    /// segment, or a cloth element's first edge index offset past every segment).
+    edge_group: Vec<u32>,
+    /// Per edge: a hair segment (true) or a cloth edge.
+    edge_hair: Vec<bool>,
+    /// Half the largest distance of any pair [m]: the boxes' padding.
+    half: f64,
+    trees: Option<[BoxTree; 3]>,
+    found: Vec<(u32, u32)>,
+    keys: BTreeSet<(u8, u32, u32)>,
+}
+
+impl Solids {
+    /// The detection for `setup`'s solid pairs; `None` when it has none.
+    pub(crate) fn new(setup: &CollisionSetup, ranges: &[Option<Range<usize>>]) -> Option<Self> {
+        if setup.solid_pairs.is_empty() {
+            return None;
+        }
+        let n = ranges.iter().flatten().map(|r| r.end).max().unwrap_or(0);
+        let mut element_of = vec![NONE; n];
+        for (e, r) in ranges.iter().enumerate() {
+            for v in r.clone().into_iter().flatten() {
+                element_of[v] = e as u32;
+            }
+        }
+        let mut pair_of = BTreeMap::new();
+        let (mut face_of, mut vert_of, mut edge_of) =
+            (BTreeSet::new(), BTreeSet::new(), BTreeSet::new());
+        for (k, p) in setup.solid_pairs.iter().enumerate() {
+            pair_of.insert((p.a as u32, p.b as u32), k);
+            for (x, y) in [(p.a, p.b), (p.b, p.a)] {
+                let has_faces = setup.triangles.get(y).is_some_and(|t| !t.is_empty());
+                if p.vertices && has_faces {
+                    vert_of.insert(x);
+                    face_of.insert(y);
+                }
+                if p.edges {
+                    edge_of.insert(x);
+                }
+            }
+        }
+        let verts = vert_of
+            .iter()
+            .flat_map(|&e| ranges.get(e).cloned().flatten().into_iter().flatten())
+            .map(|v| v as u32)
+            .collect();
+        let tris = face_of
+            .iter()
+            .flat_map(|&e| setup.triangles[e].iter().copied())
+            .collect();
+        let (mut edges, mut edge_group, mut edge_hair) = (Vec::new(), Vec::new(), Vec::new());
+        for &e in &edge_of {
+            let segments = setup.segments.get(e).map_or(&[][..], |s| &s[..]);
+            let mut strand = NONE;
+            for (k, s) in segments.iter().enumerate() {
+                if k == 0 || segments[k - 1][1] != s[0] {
+                    strand = edges.len() as u32;
+                }
+                edges.push(*s);
+                edge_group.push(strand);
+                edge_hair.push(true);
+            }
+            let cloth = setup.edges.get(e).map_or(&[][..], |s| &s[..]);
+            let first = edges.len() as u32;
+            for s in cloth {
+                edges.push(*s);
+                edge_group.push(first);
+                edge_hair.push(false);
+            }
+        }
+        let half = 0.5
+            * setup
+                .solid_pairs
+                .iter()
+                .fold(0.0f64, |m, p| m.max(p.distance));
+        Some(Solids {
+            pair_of,
+            element_of,
+            verts,
+            tris,
+            edges,
+            edge_group,
+            edge_hair,
+            half,
+            trees: None,
+            found: Vec::new(),
+            keys: BTreeSet::new(),
+        })
+    }
+
+    /// The pair of the elements of vertices `a` and `b`, if they collide.
+    fn pair<'s>(&self, setup: &'s CollisionSetup, a: u32, b: u32) -> Option<&'s SolidPair> {
+        let (ea, eb) = (self.element_of[a as usize], self.element_of[b as usize]);
+        let k = self.pair_of.get(&(ea.min(eb), ea.max(eb)))?;
+        setup.solid_pairs.get(*k)
+    }
+
+    /// The pairs of primitives whose boxes meet and that may collide (their elements pair up
+    /// with that method, they share no vertex, not all their vertices are held), sorted, with
+    /// their pair's index: vertex–triangle (`VT`: vertex, triangle index) or edge–edge (`EE`:
+    /// lower edge index, higher).
+    fn candidates(
+        &mut self,
+        setup: &CollisionSetup,
+        pinned: &[bool],
+        kind: u8,
+    ) -> Vec<(u32, u32, usize)> {
+        let Some(trees) = &self.trees else {
+            return Vec::new();
+        };
+        self.found.clear();
+        if kind == VT {
+            trees[0].pairs(&trees[1], &mut self.found);
+        } else {
+            trees[2].pairs(&trees[2], &mut self.found);
+            self.found.retain(|&(i, j)| i < j);
+        }
+        self.found.sort_unstable();
+        let held = |vs: &[u32]| vs.iter().all(|&k| pinned[k as usize]);
+        let mut out = Vec::with_capacity(self.found.len());
+        for &(i, j) in &self.found {
+            let (ids, enabled): ([u32; 4], fn(&SolidPair) -> bool) = if kind == VT {
+                let (v, t) = (self.verts[i as usize], self.tris[j as usize]);
+                if t.contains(&v) {
+                    continue;
+                }
+                ([v, t[0], t[1], t[2]], |p| p.vertices)
+            } else {
+                let (a, b) = (self.edges[i as usize], self.edges[j as usize]);
+                if a.iter().any(|v| b.contains(v)) {
+                    continue;
+                }
+                ([a[0], a[1], b[0], b[1]], |p| p.edges)
+            };
+            if held(&ids) {
+                continue;
+            }
+            let side = if kind == VT { ids[1] } else { ids[2] };
+            let (ea, eb) = (
+                self.element_of[ids[0] as usize],
+                self.element_of[side as usize],
+            );
+            if let Some(&k) = self.pair_of.get(&(ea.min(eb), ea.max(eb)))
+                && enabled(&setup.solid_pairs[k])
+            {
+                out.push((i, j, k));
+            }
+        }
+        out
+    }
+
+    /// Refits the trees (building them the first time) to the primitives' boxes over the
+    /// positions `x0` and `x1(i)`, padded by `pad`.
+    fn refit(&mut self, x0: &[V], x1: &impl Fn(usize) -> V, pad: f64) {
+        let p = V::repeat(pad);
+        let span = |vs: &[u32]| {
+            let (mut lo, mut hi) = (V::repeat(f64::INFINITY), V::repeat(f64::NEG_INFINITY));
+            for &v in vs {
+                let (a, b) = (x0[v as usize], x1(v as usize));
+                lo = lo.inf(&a).inf(&b);
+                hi = hi.sup(&a).sup(&b);
+            }
+            (lo - p, hi + p)
+        };
+        let mut built = self.trees.take();
+        let lists: [Vec<(V, V)>; 3] = [
+            self.verts.iter().map(|v| span(&[*v])).collect(),
+            self.tris.iter().map(|t| span(t)).collect(),
+            self.edges.iter().map(|e| span(e)).collect(),
+        ];
+        match &mut built {
+            Some(trees) => {
+                for (t, b) in trees.iter_mut().zip(&lists) {
+                    t.refit(b);
+                }
+            }
+            None => built = Some(lists.each_ref().map(|b| BoxTree::new(b))),
+        }
+        self.trees = built;
+    }
+
+    /// Appends to `out` the contacts for a step of `h` from `x0`, `v0` (see the module doc),
+    /// and forgets the last step's.
+    pub(crate) fn detect(
+        &mut self,
+        setup: &CollisionSetup,
+        pinned: &[bool],
+        x0: &[V],
+        v0: &[V],
+        h: f64,
+        out: &mut Vec<Contact>,
+    ) {
+        self.keys.clear();
+        let end = |i: usize| x0[i] + h * v0[i];
+        self.refit(x0, &end, 1.25 * self.half);
+        let travel = |i: u32| (end(i as usize) - x0[i as usize]).norm();
+        // Vertex–face: per vertex and element, the nearest triangle within reach, and any
+        // other whose closest point is inside its face.
+        let mut near: Vec<(u32, u32, f64, u32, [f64; 3])> = Vec::new();
+        for (vi, ti, k) in self.candidates(setup, pinned, VT) {
+            let (v, t, pair) = (
+                self.verts[vi as usize],
+                self.tris[ti as usize],
+                &setup.solid_pairs[k],
+            );
+            let tri = t.map(|k| x0[k as usize]);
+            let p = x0[v as usize];
+            let w = closest_on_triangle(&p, &tri[0], &tri[1], &tri[2]);
+            let d = (p - (w[0] * tri[0] + w[1] * tri[1] + w[2] * tri[2])).norm();
+            let reach =
+                1.25 * pair.distance + travel(v) + t.iter().map(|&k| travel(k)).fold(0.0, f64::max);
+            if d <= reach {
+                near.push((v, self.element_of[t[0] as usize], d, ti, w));
+            }
+        }
+        near.sort_by(|a, b| {
+            (a.0, a.1)
+                .cmp(&(b.0, b.1))
+                .then(a.2.total_cmp(&b.2))
+                .then(a.3.cmp(&b.3))
+        });
+        for (k, &(v, e, _, ti, w)) in near.iter().enumerate() {
+            let first = k == 0 || (near[k - 1].0, near[k - 1].1) != (v, e);
+            if first || w.iter().all(|&b| b > 1e-9) {
+                let t = self.tris[ti as usize];
+                let pair = self.pair(setup, v, t[0]).expect("filtered above");
+                self.keys.insert((VT, v, ti));
+                out.push(vt_contact(setup, pair, v, t, w, x0, &end, h));
+            }
+        }
+        // Edge–edge, for hair only (cloth's are found by the check): per segment and strand
+        // (or cloth element) of the other side, the nearest within reach.
+        let mut near: Vec<(u32, u32, f64, u32)> = Vec::new();
+        for (i, j, k) in self.candidates(setup, pinned, EE) {
+            if !(self.edge_hair[i as usize] || self.edge_hair[j as usize]) {
+                continue;
+            }
+            let (a, b, pair) = (
+                self.edges[i as usize],
+                self.edges[j as usize],
+                &setup.solid_pairs[k],
+            );
+            let x = [a[0], a[1], b[0], b[1]].map(|k| x0[k as usize]);
+            let d = ccd::distance(PairKind::EdgeEdge, &x);
+            let reach = 1.25 * pair.distance
+                + travel(a[0]).max(travel(a[1]))
+                + travel(b[0]).max(travel(b[1]));
+            if d <= reach {
+                near.push((i, self.edge_group[j as usize], d, j));
+                near.push((j, self.edge_group[i as usize], d, i));
+            }
+        }
+        near.sort_by(|a, b| {
+            (a.0, a.1)
+                .cmp(&(b.0, b.1))
+                .then(a.2.total_cmp(&b.2))
+                .then(a.3.cmp(&b.3))
+        });
+        let mut chosen = BTreeSet::new();
+        for (k, &(i, g, _, j)) in near.iter().enumerate() {
+            if k == 0 || (near[k - 1].0, near[k - 1].1) != (i, g) {
+                chosen.insert((i.min(j), i.max(j)));
+            }
+        }
+        for (i, j) in chosen {
+            let (a, b) = (self.edges[i as usize], self.edges[j as usize]);
+            let pair = self.pair(setup, a[0], b[0]).expect("filtered above");
+            self.keys.insert((EE, i, j));
+            out.push(ee_contact(setup, pair, a, b, x0, &end, h));
+        }
+    }
+
+    /// The check after a solve from `x0` to `x1` (see the module doc): appends the contacts
+    /// the paths need to `contacts`.
+    pub(crate) fn check(
+        &mut self,
+        setup: &CollisionSetup,
+        pinned: &[bool],
+        x0: &[V],
+        x1: &[V],
+        h: f64,
+        contacts: &mut Vec<Contact>,
+    ) -> Checked {
+        let end = |i: usize| x1[i];
+        self.refit(x0, &end, self.half);
+        let mut out = Checked {
+            toi: 1.0,
+            ..Default::default()
+        };
+        let mut judge = |kind: PairKind,
+                         key: (u8, u32, u32),
+                         ids: [u32; 4],
+                         pair: &SolidPair,
+                         keys: &mut BTreeSet<(u8, u32, u32)>|
+         -> bool {
+            let x = ids.map(|k| x0[k as usize]);
+            let d = ids.map(|k| x1[k as usize] - x0[k as usize]);
+            let dist = pair.distance;
+            let end_gap = ccd::distance(kind, &positions_at_end(&x, &d)) - dist;
+            let mut add = false;
+            if keys.contains(&key) {
+                out.deepest = out.deepest.max(-end_gap);
+            } else if ccd::time_of_impact(kind, &x, &d, dist * (1.0 - 1e-3)).is_some() {
+                out.deepest = out.deepest.max(-end_gap);
+                keys.insert(key);
+                add = true;
+            } else {
+                return false; // never within the distance: not crossing either
+            }
+            let d0 = ccd::distance(kind, &x);
+            if d0 <= 1e-6 * dist {
+                out.started_inside += 1;
+            } else if let Some(t) = ccd::time_of_impact(kind, &x, &d, (0.1 * dist).min(0.5 * d0)) {
+                out.crossing += 1;
+                out.toi = out.toi.min(t);
+            }
+            add
+        };
+        for (vi, ti, k) in self.candidates(setup, pinned, VT) {
+            let (v, t, pair) = (
+                self.verts[vi as usize],
+                self.tris[ti as usize],
+                &setup.solid_pairs[k],
+            );
+            if judge(
+                PairKind::PointTriangle,
+                (VT, v, ti),
+                [v, t[0], t[1], t[2]],
+                pair,
+                &mut self.keys,
+            ) {
+                let tri = t.map(|k| x0[k as usize]);
+                let w = closest_on_triangle(&x0[v as usize], &tri[0], &tri[1], &tri[2]);
+                contacts.push(vt_contact(setup, pair, v, t, w, x0, &end, h));
+                out.added += 1;
+            }
+        }
+        for (i, j, k) in self.candidates(setup, pinned, EE) {
+            let (a, b, pair) = (
+                self.edges[i as usize],
+                self.edges[j as usize],
+                &setup.solid_pairs[k],
+            );
+            if judge(
+                PairKind::EdgeEdge,
+                (EE, i, j),
+                [a[0], a[1], b[0], b[1]],
+                pair,
+                &mut self.keys,
+            ) {
+                contacts.push(ee_contact(setup, pair, a, b, x0, &end, h));
+                out.added += 1;
+            }
+        }
+        out
+    }
+}
+
+fn positions_at_end(x: &[V; 4], d: &[V; 4]) -> [V; 4] {
+    [x[0] + d[0], x[1] + d[1], x[2] + d[2], x[3] + d[3]]
+}
+
+/// The unit normal from `b` to `a` at the start; where they touch, `fallback` (unit, or zero)
+/// turned against the relative motion `rel` of `a` (it comes from the side it moves away
+/// from), else any direction across `rel`.
+fn normal(a: &V, b: &V, fallback: V, rel: &V) -> V {
+    let scale = a.amax().max(b.amax()).max(1.0);
+    if let Some(n) = (a - b).try_normalize(1e-12 * scale) {
+        return n;
+    }
+    if fallback != V::zeros() {
+        return if fallback.dot(rel) > 0.0 {
+            -fallback
+        } else {
+            fallback
+        };
+    }
+    match (-rel).try_normalize(0.0) {
+        Some(n) => n,
+        None => V::z(),
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn vt_contact(
+    setup: &CollisionSetup,
+    pair: &SolidPair,
+    v: u32,
+    t: [u32; 3],
+    w: [f64; 3],
+    x0: &[V],
+    end: &impl Fn(usize) -> V,
+    h: f64,
+) -> Contact {
+    let tri = t.map(|k| x0[k as usize]);
+    let q = w[0] * tri[0] + w[1] * tri[1] + w[2] * tri[2];
+    let p = x0[v as usize];
+    let face = (tri[1] - tri[0])
+        .cross(&(tri[2] - tri[0]))
+        .try_normalize(0.0)
+        .unwrap_or_else(V::zeros);
+    let moved = |k: u32| end(k as usize) - x0[k as usize];
+    let rel = moved(v) - (w[0] * moved(t[0]) + w[1] * moved(t[1]) + w[2] * moved(t[2]));
+    let n = normal(&p, &q, face, &rel);
+    let cohesion = pair.cohesion * setup.areas.get(v as usize).copied().unwrap_or(0.0) * h;
+    make(
+        pair,
+        n,
+        (p - q).norm(),
+        cohesion,
+        &[(v, 1.0), (t[0], -w[0]), (t[1], -w[1]), (t[2], -w[2])],
+    )
+}
+
+fn ee_contact(
+    setup: &CollisionSetup,
+    pair: &SolidPair,
+    a: [u32; 2],
+    b: [u32; 2],
+    x0: &[V],
+    end: &impl Fn(usize) -> V,
+    h: f64,
+) -> Contact {
+    let [a0, a1, b0, b1] = [a[0], a[1], b[0], b[1]].map(|k| x0[k as usize]);
+    let (s, t) = closest_segment_segment(&a0, &a1, &b0, &b1);
+    let (pa, pb) = (a0 + s * (a1 - a0), b0 + t * (b1 - b0));
+    let moved = |k: u32| end(k as usize) - x0[k as usize];
+    let rel = (1.0 - s) * moved(a[0]) + s * moved(a[1]) - (1.0 - t) * moved(b[0]) - t * moved(b[1]);
+    let across = (a1 - a0)
+        .cross(&(b1 - b0))
+        .try_normalize(0.0)
+        .unwrap_or_else(V::zeros);
+    let n = normal(&pa, &pb, across, &rel);
+    let area = |e: [u32; 2], u: f64| {
+        let ar = |k: u32| setup.areas.get(k as usize).copied().unwrap_or(0.0);
+        (1.0 - u) * ar(e[0]) + u * ar(e[1])
+    };
+    let cohesion = pair.cohesion * area(a, s).min(area(b, t)) * h;
+    make(
+        pair,
+        n,
+        (pa - pb).norm(),
+        cohesion,
+        &[(a[0], 1.0 - s), (a[1], s), (b[0], -(1.0 - t)), (b[1], -t)],
+    )
+}
+
+/// A contact between two solids: its point Σ wⱼ xⱼ is the first side's closest point less
+/// the second's, kept `pair.distance` apart along `n` (the second side's velocity is in the
+/// weights, so the contact's own is zero); `d` the start distance.
+fn make(pair: &SolidPair, n: V, d: f64, cohesion: f64, points: &[(u32, f64)]) -> Contact {
+    let mut gap = d - pair.distance;
+    if gap < 0.0 {
+        gap *= pair.strength;
+    }
+    Contact {
+        frame: frame(&n),
+        gap,
+        friction: pair.friction,
+        cohesion,
+        damping: pair.damping,
+        ..Contact::points(points)
+    }
+}
