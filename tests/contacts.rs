@@ -581,3 +581,108 @@ fn cloth_stays_out_of_a_box_and_a_mesh() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// True when segment p→q meets triangle t, written here independently of the solver: the
+/// ends on opposite sides of (or on) its plane by more than rounding (1e-12 of the
+/// coordinates), and the crossing point inside it (to rounding). Both ends on the plane
+/// (coplanar pieces, as flat cloth is): it meets when an end or its middle is inside by more
+/// than 1e-9 m (an overlap of flat pieces; touching edges are not an intersection).
+fn segment_meets_triangle(p: [f64; 3], q: [f64; 3], t: [[f64; 3]; 3]) -> bool {
+    type V = nalgebra::Vector3<f64>;
+    let (p, q, t) = (V::from(p), V::from(q), t.map(V::from));
+    let n = (t[1] - t[0]).cross(&(t[2] - t[0]));
+    let Some(n) = n.try_normalize(0.0) else {
+        return false;
+    };
+    let scale = [p, q, t[0], t[1], t[2]]
+        .iter()
+        .fold(1.0f64, |m, x| m.max(x.amax()));
+    let tol = 1e-12 * scale;
+    let (dp, dq) = ((p - t[0]).dot(&n), (q - t[0]).dot(&n));
+    let inside = |x: V, margin: f64| {
+        (0..3).all(|k| {
+            let e = t[(k + 1) % 3] - t[k];
+            e.cross(&(x - t[k])).dot(&n) / e.norm() >= margin
+        })
+    };
+    if (dp > tol && dq > tol) || (dp < -tol && dq < -tol) {
+        return false;
+    }
+    if dp.abs() <= tol && dq.abs() <= tol {
+        return [p, q, 0.5 * (p + q)].iter().any(|&x| inside(x, 1e-9));
+    }
+    let x = p + dp / (dp - dq) * (q - p);
+    inside(x, -tol)
+}
+
+/// Pairs of triangles of the cloth elements `names` in `scene` (between them and within
+/// each, skipping pairs that share a vertex) that intersect: an edge of one meets the other.
+fn intersecting_triangles(scene: &Scene, names: &[&str]) -> usize {
+    let mut tris: Vec<[[f64; 3]; 3]> = Vec::new();
+    let mut ids: Vec<[(usize, u32); 3]> = Vec::new();
+    for (k, name) in names.iter().enumerate() {
+        let e = scene.iter().find(|e| e.name == *name).unwrap();
+        let weft_scene::Geometry::Mesh(m) = &*e.geometry else {
+            panic!("'{name}' is a mesh")
+        };
+        for t in &m.triangles {
+            tris.push(t.map(|v| m.positions[v as usize]));
+            ids.push(t.map(|v| (k, v)));
+        }
+    }
+    let bound = |t: &[[f64; 3]; 3], a: usize| {
+        let v = [t[0][a], t[1][a], t[2][a]];
+        (
+            v.iter().copied().fold(f64::INFINITY, f64::min),
+            v.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        )
+    };
+    let mut count = 0;
+    for i in 0..tris.len() {
+        for j in i + 1..tris.len() {
+            if ids[i].iter().any(|v| ids[j].contains(v)) {
+                continue;
+            }
+            let apart = (0..3).any(|a| {
+                let ((li, hi), (lj, hj)) = (bound(&tris[i], a), bound(&tris[j], a));
+                li > hj || lj > hi
+            });
+            if apart {
+                continue;
+            }
+            let (ti, tj) = (tris[i], tris[j]);
+            if (0..3).any(|k| segment_meets_triangle(ti[k], ti[(k + 1) % 3], tj))
+                || (0..3).any(|k| segment_meets_triangle(tj[k], tj[(k + 1) % 3], ti))
+            {
+                count += 1;
+            }
+        }
+    }
+    count
+}
+
+/// The cloth pile example: at every frame no triangle of the three sheets meets another
+/// (between sheets and within each), by the exact test above; and the pile lands: the upper
+/// sheet, dropped from 18 cm above the box's top, ends with its centre between 10 cm below
+/// the top and the top (it lies on the others and drapes over the box's edges; measured
+/// 0.26 m) and no point more than 5 cm above the top (its folds: 2.6 cm measured).
+#[test]
+fn the_cloth_pile_never_intersects() {
+    let mut g = example_scene("cloth_pile.json", "solve.scene");
+    let (mut top, mut centre) = (0.0, 0.0);
+    for f in 0..=24 {
+        let v = g.pull("scene", Context::new(f)).unwrap();
+        let scene = v.get::<Scene>().unwrap();
+        let crossing = intersecting_triangles(scene, &["lower", "middle", "upper"]);
+        assert_eq!(crossing, 0, "frame {f}");
+        let upper = scene.iter().find(|e| e.name == "upper").unwrap();
+        let y: Vec<f64> = upper.geometry.positions().iter().map(|p| p[1]).collect();
+        top = y.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        centre = y.iter().sum::<f64>() / y.len() as f64;
+    }
+    assert!(
+        (0.2..0.3).contains(&centre),
+        "the upper sheet's centre is at {centre} m"
+    );
+    assert!(top < 0.35, "the upper sheet's highest point is {top} m");
+}

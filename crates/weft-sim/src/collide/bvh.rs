@@ -85,3 +85,41 @@ impl BoxTree {
         out.extend(self.bvh.leaf_pairs(&other.bvh, |a, b| a.intersects(b)));
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Traversing a tree against itself yields every overlapping pair in both orders (the
+    /// detection keeps i < j), checked against all pairs of 60 random boxes.
+    #[test]
+    fn self_pairs_are_every_overlap_in_both_orders() {
+        let mut seed = 5u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let boxes: Vec<(Vector3<f64>, Vector3<f64>)> = (0..60)
+            .map(|_| {
+                let lo = Vector3::new(rnd(), rnd(), rnd());
+                (lo, lo + Vector3::new(rnd(), rnd(), rnd()) * 0.2)
+            })
+            .collect();
+        let tree = BoxTree::new(&boxes);
+        let mut found = Vec::new();
+        tree.pairs(&tree, &mut found);
+        found.sort_unstable();
+        found.dedup();
+        let mut want = Vec::new();
+        for (i, a) in boxes.iter().enumerate() {
+            for (j, b) in boxes.iter().enumerate() {
+                if (0..3).all(|k| a.0[k] <= b.1[k] && b.0[k] <= a.1[k]) {
+                    want.push((i as u32, j as u32));
+                }
+            }
+        }
+        assert_eq!(found, want);
+    }
+}
