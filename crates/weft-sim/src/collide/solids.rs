@@ -80,6 +80,10 @@ pub(crate) struct Solids {
     edge_group: Vec<u32>,
     /// Per edge: a hair segment (true) or a cloth edge.
     edge_hair: Vec<bool>,
+    /// Per hair segment: the segment before and after it in its strand (`NONE` at its ends
+    /// and for cloth edges).
+    edge_prev: Vec<u32>,
+    edge_next: Vec<u32>,
     /// Half the largest distance of any pair [m]: the boxes' padding.
     half: f64,
     trees: Option<[BoxTree; 3]>,
@@ -145,6 +149,13 @@ impl Solids {
                 edge_hair.push(false);
             }
         }
+        let (mut edge_prev, mut edge_next) = (vec![NONE; edges.len()], vec![NONE; edges.len()]);
+        for k in 1..edges.len() {
+            if edge_hair[k] && edge_hair[k - 1] && edges[k - 1][1] == edges[k][0] {
+                edge_prev[k] = (k - 1) as u32;
+                edge_next[k - 1] = k as u32;
+            }
+        }
         let half = 0.5
             * setup
                 .solid_pairs
@@ -158,6 +169,8 @@ impl Solids {
             edges,
             edge_group,
             edge_hair,
+            edge_prev,
+            edge_next,
             half,
             trees: None,
             found: Vec::new(),
@@ -224,6 +237,45 @@ impl Solids {
             }
         }
         out
+    }
+
+    /// Whether the pair of edges `i` and `j` should carry a contact of its own, from their
+    /// closest points at `x0`. Two cloth edges: only when both points are inside them (a
+    /// point at an end is a vertex, which vertex–face holds). A hair segment whose point is
+    /// at a joint of its strand: only when the segment past the joint is farther (or as far
+    /// and later): both are parts of one smooth capsule, and the farther one's end, seen
+    /// from a point sliding over the joint, would give a plane tilted against the motion (a
+    /// strand sliding across another lost 45 % of its speed at every joint it passed).
+    fn edge_pair_owned(&self, i: u32, j: u32, x0: &[V]) -> bool {
+        let at = |e: u32| self.edges[e as usize].map(|k| x0[k as usize]);
+        let (a, b) = (at(i), at(j));
+        let (s, t) = closest_segment_segment(&a[0], &a[1], &b[0], &b[1]);
+        let clamped = |u: f64| !(1e-9..=1.0 - 1e-9).contains(&u);
+        if !self.edge_hair[i as usize] && !self.edge_hair[j as usize] {
+            return !clamped(s) && !clamped(t);
+        }
+        let dist =
+            |p: &[V; 2], q: &[V; 2]| ccd::distance(PairKind::EdgeEdge, &[p[0], p[1], q[0], q[1]]);
+        let d = dist(&a, &b);
+        let scale = 1e-12 * a.iter().chain(&b).fold(1.0f64, |m, p| m.max(p.amax()));
+        for (k, u, other) in [(i, s, &b), (j, t, &a)] {
+            if !self.edge_hair[k as usize] || !clamped(u) {
+                continue;
+            }
+            let past = if u < 0.5 {
+                self.edge_prev[k as usize]
+            } else {
+                self.edge_next[k as usize]
+            };
+            if past == NONE {
+                continue;
+            }
+            let dn = dist(&at(past), other);
+            if dn < d - scale || (dn <= d + scale && past < k) {
+                return false;
+            }
+        }
+        true
     }
 
     /// Refits the trees (building them the first time) to the primitives' boxes over the
@@ -340,6 +392,9 @@ impl Solids {
             }
         }
         for (i, j) in chosen {
+            if !self.edge_pair_owned(i, j, x0) {
+                continue;
+            }
             let (a, b) = (self.edges[i as usize], self.edges[j as usize]);
             let pair = self.pair(setup, a[0], b[0]).expect("filtered above");
             self.keys.insert((EE, i, j));
@@ -368,7 +423,8 @@ impl Solids {
                          key: (u8, u32, u32),
                          ids: [u32; 4],
                          pair: &SolidPair,
-                         keys: &mut BTreeSet<(u8, u32, u32)>|
+                         keys: &mut BTreeSet<(u8, u32, u32)>,
+                         may_add: bool|
          -> bool {
             let x = ids.map(|k| x0[k as usize]);
             let d = ids.map(|k| x1[k as usize] - x0[k as usize]);
@@ -379,8 +435,11 @@ impl Solids {
                 out.deepest = out.deepest.max(-end_gap);
             } else if ccd::time_of_impact(kind, &x, &d, dist * (1.0 - 1e-3)).is_some() {
                 out.deepest = out.deepest.max(-end_gap);
-                keys.insert(key);
-                add = true;
+                // A pair another holds (see `edge_pair_owned`) is still judged for crossing.
+                if may_add {
+                    keys.insert(key);
+                    add = true;
+                }
             } else {
                 return false; // never within the distance: not crossing either
             }
@@ -405,6 +464,7 @@ impl Solids {
                 [v, t[0], t[1], t[2]],
                 pair,
                 &mut self.keys,
+                true,
             ) {
                 let tri = t.map(|k| x0[k as usize]);
                 let w = closest_on_triangle(&x0[v as usize], &tri[0], &tri[1], &tri[2]);
@@ -418,12 +478,14 @@ impl Solids {
                 self.edges[j as usize],
                 &setup.solid_pairs[k],
             );
+            let owned = self.edge_pair_owned(i, j, x0);
             if judge(
                 PairKind::EdgeEdge,
                 (EE, i, j),
                 [a[0], a[1], b[0], b[1]],
                 pair,
                 &mut self.keys,
+                owned,
             ) {
                 contacts.push(ee_contact(setup, pair, a, b, x0, &end, h));
                 out.added += 1;
