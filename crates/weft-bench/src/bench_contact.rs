@@ -29,18 +29,20 @@ use weft_sim::{
 };
 use weft_solid::Settings;
 
+/// Every side of the drape and the rotating sphere: μ 0.4, 1 mm thickness.
+const SIDE: Collider = Collider {
+    friction: 0.4,
+    thickness: 1e-3,
+    cohesion: 0.0,
+};
+
 fn drape(n: usize) -> Vec<SceneElement> {
-    let friction = Collider {
-        friction: 0.4,
-        thickness: 1e-3,
-        cohesion: 0.0,
-    };
     let mut cloth = SceneElement::new(
         "cloth",
         ElementKind::Cloth,
         Geometry::Mesh(grid([1.0, 1.0], [n, n], Plane::Xz, [0.0, 0.307, 0.0])),
     );
-    cloth.secs.insert(friction.clone());
+    cloth.secs.insert(SIDE);
     let count = cloth.vertex_count();
     cloth.set_channel("velocity", Channel::Vec3(vec![[0.0, -0.5, 0.0]; count]));
     let mut ball = SceneElement::new(
@@ -48,21 +50,57 @@ fn drape(n: usize) -> Vec<SceneElement> {
         ElementKind::Collider,
         Geometry::Mesh(sphere([0.0; 3], 0.3, 48, 96)),
     );
-    ball.secs.insert(friction);
+    ball.secs.insert(SIDE);
     let mut group = SceneElement::new("contacts", ElementKind::Collision, Geometry::None);
     group.secs.insert(CollisionGroup::default());
     vec![cloth, ball, group]
 }
 
+/// The rotating sphere (the contact literature's standard self-collision scene): a 1 m
+/// square cloth (n × n vertices) 5 mm above a sphere of radius 0.3 m (48 × 96 facets)
+/// resting on a floor, μ 0.4 on every side, 1 mm thickness each side, self-collision on. The
+/// sphere turns about the vertical at 180°/s (`spin`), so friction winds the cloth around it
+/// and its folds land on each other and on the floor.
+fn twist(n: usize) -> Vec<SceneElement> {
+    let mut scene = drape(n);
+    scene[2].secs.insert(CollisionGroup {
+        self_collision: true,
+        ..CollisionGroup::default()
+    });
+    let mut floor = SceneElement::new(
+        "floor",
+        ElementKind::Collider,
+        Geometry::Mesh(grid([3.0, 3.0], [2, 2], Plane::Xz, [0.0, -0.3, 0.0])),
+    );
+    floor.secs.insert(SIDE);
+    scene.insert(2, floor);
+    scene
+}
+
+/// The sphere's turn at `frame` (24 fps, 180°/s about y).
+fn spin(frame: i64) -> weft_scene::Transform {
+    let angle = std::f64::consts::PI * frame as f64 / 24.0;
+    nalgebra::Isometry3::rotation(nalgebra::Vector3::y() * angle)
+}
+
+#[derive(Default)]
 struct Measured {
     vertices: usize,
     steps: usize,
     seconds: f64,
     detection: f64,
+    /// Of `detection`, between solids: broad phase, narrow phase, continuous detection.
+    broad: f64,
+    narrow: f64,
+    ccd: f64,
     admm: f64,
     contacts: usize,
+    max_contacts: usize,
     admm_iterations: usize,
     newton_iterations: usize,
+    crossing_retries: usize,
+    cut_backs: usize,
+    max_penetration: f64,
 }
 
 /// Cloth material, `gravity` and collisions.
@@ -78,45 +116,62 @@ fn tree(gravity: [f64; 3]) -> BehaviorTree {
     }
 }
 
-fn run(n: usize, frames: i64) -> Result<Measured, String> {
-    let scene = drape(n);
+/// `frames` frames of `scene` (`label` for progress), one step a frame at 24 fps; with
+/// `turning`, that element turns as [`spin`] says.
+fn run(
+    label: &str,
+    mut scene: Vec<SceneElement>,
+    frames: i64,
+    turning: Option<usize>,
+) -> Result<Measured, String> {
     let compiled = Arc::new(compile(&scene, &tree([0.0, -9.81, 0.0])).map_err(|e| e.to_string())?);
-    let vertices = compiled.state.x.len();
     let settings = crate::bench_solid::one_step_a_frame();
-    let mut stepper = SolidStepper::new(compiled, settings).map_err(|e| e.to_string())?;
+    let mut stepper = SolidStepper::new(compiled.clone(), settings).map_err(|e| e.to_string())?;
     let mut state = stepper.initial_state(&scene);
     let mut m = Measured {
-        vertices,
-        steps: 0,
-        seconds: 0.0,
-        detection: 0.0,
-        admm: 0.0,
-        contacts: 0,
-        admm_iterations: 0,
-        newton_iterations: 0,
+        vertices: compiled.state.x.len(),
+        ..Measured::default()
     };
     let t = Instant::now();
     for f in 1..=frames {
+        if let Some(k) = turning {
+            scene[k].transform = Some(spin(f));
+        }
         let (next, s) = stepper
             .advance(&state, &scene, f, 1.0 / 24.0)
-            .map_err(|e| format!("{n}×{n}: {e}"))?;
+            .map_err(|e| format!("{label}: {e}"))?;
         state = next;
         m.steps += s.steps;
         m.newton_iterations += s.newton_iterations;
         let c = s.contacts.unwrap_or_default();
-        // Progress (stderr): the largest drape takes minutes a step.
+        // Progress (stderr): the largest scenes take minutes a step.
         eprintln!(
-            "drape {n}×{n} frame {f}: {:.1} s so far; this step: {} contacts, {} Newton and {} ADMM iterations, ADMM {:.1} s",
+            "{label} frame {f}: {:.1} s so far; {} steps, {} contacts (at most {}), {} Newton and {} ADMM iterations, ADMM {:.1} s, detection {:.2} s (broad {:.2}, narrow {:.2}, CCD {:.2}), {} crossing retries, {} cut-backs",
             t.elapsed().as_secs_f64(),
+            s.steps,
             c.contacts,
+            c.max_contacts,
             s.newton_iterations,
             c.admm_iterations,
-            c.admm_seconds
+            c.admm_seconds,
+            c.detection_seconds,
+            c.broad_seconds,
+            c.narrow_seconds,
+            c.ccd_seconds,
+            c.crossing_retries,
+            c.cut_backs,
         );
         m.detection += c.detection_seconds;
+        m.broad += c.broad_seconds;
+        m.narrow += c.narrow_seconds;
+        m.ccd += c.ccd_seconds;
         m.admm += c.admm_seconds;
         m.contacts += c.contacts;
+        m.max_contacts = m.max_contacts.max(c.max_contacts);
         m.admm_iterations += c.admm_iterations;
+        m.crossing_retries += c.crossing_retries;
+        m.cut_backs += c.cut_backs;
+        m.max_penetration = m.max_penetration.max(c.max_penetration);
     }
     m.seconds = t.elapsed().as_secs_f64();
     Ok(m)
@@ -266,70 +321,109 @@ fn incline_sweep(quick: bool, out: &Path) -> Result<(Vec<Row>, Checks), String> 
     Ok((rows, checks))
 }
 
-/// The suite: the incline sweep (rows, checks, chart in `out`) and the drape's costs.
+/// The suite: the incline sweep (rows, checks, chart in `out`), the drape's and the rotating
+/// sphere's costs.
 pub(crate) fn suite(quick: bool, out: &Path) -> Result<(Vec<Row>, Checks), String> {
     let (mut rows, checks) = incline_sweep(quick, out)?;
-    rows.extend(drape_rows(quick)?);
-    Ok((rows, checks))
-}
-
-fn drape_rows(quick: bool) -> Result<Vec<Row>, String> {
-    // (n, frames): the larger drapes take minutes a step, so they run fewer frames.
-    let sizes: &[(usize, i64)] = if quick {
+    // (n, frames): the larger scenes take minutes a step, so they run fewer frames.
+    let drapes: &[(usize, i64)] = if quick {
         &[(16, 2), (32, 2)]
     } else {
         &[(64, 4), (128, 2), (256, 1)]
     };
-    let mut rows = Vec::new();
-    for &(n, frames) in sizes {
-        let m = run(n, frames)?;
-        let steps = m.steps as f64;
-        let ms = |s: f64| s * 1e3 / steps;
-        let name = format!("drape {n}×{n}");
-        let mut push = |what: &str, value: f64, unit: &'static str, target: &'static str| {
-            rows.push(Row {
-                case: format!("{name}: {what}"),
-                nodes: m.vertices,
-                value,
-                unit,
-                target,
-            })
-        };
-        push("ms per step", ms(m.seconds), "ms", "");
-        push("  detection", ms(m.detection), "ms", "");
-        push("  ADMM", ms(m.admm), "ms", "");
-        push(
-            "  rest of Newton",
-            ms(m.seconds - m.detection - m.admm),
-            "ms",
-            "",
-        );
-        push(
-            "contact share of step",
-            100.0 * (m.detection + m.admm) / m.seconds,
-            "%",
-            "≤ 50 %",
-        );
-        push("contacts per step", m.contacts as f64 / steps, "", "");
-        push(
-            "Newton iterations per step",
-            m.newton_iterations as f64 / steps,
-            "",
-            "",
-        );
-        push(
-            "ADMM iterations per step",
-            m.admm_iterations as f64 / steps,
-            "",
-            "",
-        );
-        // Each size's rows as soon as they are measured (stderr), before the table.
-        for r in &rows[rows.len() - 8..] {
-            eprintln!(
-                "| {} | {} | {:.3} | {} | {} |",
-                r.case, r.nodes, r.value, r.unit, r.target
-            );
-        }
+    for &(n, frames) in drapes {
+        let label = format!("drape {n}×{n}");
+        rows.extend(cost_rows(&label, &run(&label, drape(n), frames, None)?));
     }
-    Ok(rows)
+    // `WEFT_TWIST="n:frames,…"` picks the rotating sphere's sizes (the full set takes hours).
+    let twists: Vec<(usize, i64)> = match std::env::var("WEFT_TWIST") {
+        Ok(list) => list
+            .split(',')
+            .map(|p| {
+                let (n, f) = p.split_once(':').unwrap_or((p, "100"));
+                Ok((
+                    n.trim()
+                        .parse()
+                        .map_err(|_| format!("WEFT_TWIST: bad size in '{p}'"))?,
+                    f.trim()
+                        .parse()
+                        .map_err(|_| format!("WEFT_TWIST: bad frame count in '{p}'"))?,
+                ))
+            })
+            .collect::<Result<_, String>>()?,
+        Err(_) if quick => vec![(16, 6)],
+        Err(_) => vec![(100, 100), (200, 100), (292, 100)],
+    };
+    for (n, frames) in twists {
+        let label = format!("rotating sphere {n}×{n}");
+        // The sphere is the scene's second element.
+        rows.extend(cost_rows(&label, &run(&label, twist(n), frames, Some(1))?));
+    }
+    Ok((rows, checks))
+}
+
+/// A measured run's rows: time per step and its split, contacts and iterations per step.
+fn cost_rows(name: &str, m: &Measured) -> Vec<Row> {
+    let steps = m.steps.max(1) as f64;
+    let ms = |s: f64| s * 1e3 / steps;
+    let mut rows = Vec::new();
+    let mut push = |what: &str, value: f64, unit: &'static str, target: &'static str| {
+        rows.push(Row {
+            case: format!("{name}: {what}"),
+            nodes: m.vertices,
+            value,
+            unit,
+            target,
+        })
+    };
+    push("steps", m.steps as f64, "", "");
+    push("ms per step", ms(m.seconds), "ms", "");
+    push("  detection", ms(m.detection), "ms", "");
+    push("    solids: broad phase", ms(m.broad), "ms", "");
+    push("    solids: narrow phase", ms(m.narrow), "ms", "");
+    push("    solids: CCD", ms(m.ccd), "ms", "");
+    push("  ADMM", ms(m.admm), "ms", "");
+    push(
+        "  rest of Newton",
+        ms(m.seconds - m.detection - m.admm),
+        "ms",
+        "",
+    );
+    push(
+        "contact share of step",
+        100.0 * (m.detection + m.admm) / m.seconds,
+        "%",
+        "≤ 50 %",
+    );
+    push(
+        "solid-solid detection share of step",
+        100.0 * (m.broad + m.narrow + m.ccd) / m.seconds,
+        "%",
+        "< 20 %",
+    );
+    push("contacts per step", m.contacts as f64 / steps, "", "");
+    push("most contacts in a step", m.max_contacts as f64, "", "");
+    push(
+        "Newton iterations per step",
+        m.newton_iterations as f64 / steps,
+        "",
+        "",
+    );
+    push(
+        "ADMM iterations per step",
+        m.admm_iterations as f64 / steps,
+        "",
+        "",
+    );
+    push("crossing retries", m.crossing_retries as f64, "", "");
+    push("cut-backs", m.cut_backs as f64, "", "");
+    push("largest penetration", m.max_penetration * 1e3, "mm", "");
+    // Each run's rows as soon as they are measured (stderr), before the table.
+    for r in &rows {
+        eprintln!(
+            "| {} | {} | {:.3} | {} | {} |",
+            r.case, r.nodes, r.value, r.unit, r.target
+        );
+    }
+    rows
 }

@@ -38,6 +38,7 @@ use super::{CollisionSetup, SolidPair};
 use nalgebra::Vector3;
 use std::collections::{BTreeMap, BTreeSet};
 use std::ops::Range;
+use std::time::Instant;
 use weft_solid::integrator::Contact;
 
 type V = Vector3<f64>;
@@ -62,6 +63,17 @@ pub(crate) struct Checked {
     pub toi: f64,
     /// Pairs that start touching (cannot be judged).
     pub started_inside: usize,
+}
+
+/// Where detection between solids spent its time [s], summed until taken.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct SolidTimes {
+    /// Refitting the trees and traversing them for pairs whose boxes meet.
+    pub broad: f64,
+    /// Distances and closest points of those pairs before a step (the contacts made).
+    pub narrow: f64,
+    /// Continuous detection of every path after a solve (the exact check).
+    pub ccd: f64,
 }
 
 /// The contacts between deforming solids of a compiled scene (see the module doc). Holds no
@@ -89,6 +101,7 @@ pub(crate) struct Solids {
     trees: Option<[BoxTree; 3]>,
     found: Vec<(u32, u32)>,
     keys: BTreeSet<(u8, u32, u32)>,
+    times: SolidTimes,
 }
 
 impl Solids {
@@ -175,7 +188,13 @@ impl Solids {
             trees: None,
             found: Vec::new(),
             keys: BTreeSet::new(),
+            times: SolidTimes::default(),
         })
+    }
+
+    /// The time spent since the last call (see [`SolidTimes`]).
+    pub(crate) fn take_times(&mut self) -> SolidTimes {
+        std::mem::take(&mut self.times)
     }
 
     /// The pair of the elements of vertices `a` and `b`, if they collide.
@@ -320,13 +339,19 @@ impl Solids {
         out: &mut Vec<Contact>,
     ) {
         self.keys.clear();
+        let clock = Instant::now();
         let end = |i: usize| x0[i] + h * v0[i];
         self.refit(x0, &end, 1.25 * self.half);
+        let (vt, ee) = (
+            self.candidates(setup, pinned, VT),
+            self.candidates(setup, pinned, EE),
+        );
+        let clock = self.lap(clock, |t| &mut t.broad);
         let travel = |i: u32| (end(i as usize) - x0[i as usize]).norm();
         // Vertex–face: per vertex and element, the nearest triangle within reach, and any
         // other whose closest point is inside its face.
         let mut near: Vec<(u32, u32, f64, u32, [f64; 3])> = Vec::new();
-        for (vi, ti, k) in self.candidates(setup, pinned, VT) {
+        for (vi, ti, k) in vt {
             let (v, t, pair) = (
                 self.verts[vi as usize],
                 self.tris[ti as usize],
@@ -360,7 +385,7 @@ impl Solids {
         // Edge–edge, for hair only (cloth's are found by the check): per segment and strand
         // (or cloth element) of the other side, the nearest within reach.
         let mut near: Vec<(u32, u32, f64, u32)> = Vec::new();
-        for (i, j, k) in self.candidates(setup, pinned, EE) {
+        for (i, j, k) in ee {
             if !(self.edge_hair[i as usize] || self.edge_hair[j as usize]) {
                 continue;
             }
@@ -400,6 +425,14 @@ impl Solids {
             self.keys.insert((EE, i, j));
             out.push(ee_contact(setup, pair, a, b, x0, &end, h));
         }
+        self.lap(clock, |t| &mut t.narrow);
+    }
+
+    /// Adds the time since `clock` to the field `of` picks; the new clock.
+    fn lap(&mut self, clock: Instant, of: impl Fn(&mut SolidTimes) -> &mut f64) -> Instant {
+        let now = Instant::now();
+        *of(&mut self.times) += (now - clock).as_secs_f64();
+        now
     }
 
     /// The check after a solve from `x0` to `x1` (see the module doc): appends the contacts
@@ -413,8 +446,14 @@ impl Solids {
         h: f64,
         contacts: &mut Vec<Contact>,
     ) -> Checked {
+        let clock = Instant::now();
         let end = |i: usize| x1[i];
         self.refit(x0, &end, self.half);
+        let (vt, ee) = (
+            self.candidates(setup, pinned, VT),
+            self.candidates(setup, pinned, EE),
+        );
+        let clock = self.lap(clock, |t| &mut t.broad);
         let mut out = Checked {
             toi: 1.0,
             ..Default::default()
@@ -452,7 +491,7 @@ impl Solids {
             }
             add
         };
-        for (vi, ti, k) in self.candidates(setup, pinned, VT) {
+        for (vi, ti, k) in vt {
             let (v, t, pair) = (
                 self.verts[vi as usize],
                 self.tris[ti as usize],
@@ -472,7 +511,7 @@ impl Solids {
                 out.added += 1;
             }
         }
-        for (i, j, k) in self.candidates(setup, pinned, EE) {
+        for (i, j, k) in ee {
             let (a, b, pair) = (
                 self.edges[i as usize],
                 self.edges[j as usize],
@@ -491,6 +530,7 @@ impl Solids {
                 out.added += 1;
             }
         }
+        self.lap(clock, |t| &mut t.ccd);
         out
     }
 }

@@ -30,6 +30,15 @@ pub struct ContactFrameStats {
     pub max_residual: f64,
     /// Seconds finding contacts (detection and exact checks).
     pub detection_seconds: f64,
+    /// Of `detection_seconds`, between deforming solids: refitting the trees and traversing
+    /// them (broad phase).
+    pub broad_seconds: f64,
+    /// Of `detection_seconds`, between deforming solids: distances and closest points before
+    /// a step (narrow phase).
+    pub narrow_seconds: f64,
+    /// Of `detection_seconds`, between deforming solids: continuous detection of every path
+    /// after a solve.
+    pub ccd_seconds: f64,
     /// Seconds in the ADMM loops (their solves, contact projections and refactorizations).
     pub admm_seconds: f64,
     /// Steps retried with a smaller step because continuous detection found primitives of
@@ -162,6 +171,12 @@ impl Contacts {
                 cs.started_inside = cs.started_inside.max(k.started_inside);
             }
             cs.detection_seconds += t.elapsed().as_secs_f64();
+            if let Some(solids) = &mut self.solids {
+                let times = solids.take_times();
+                cs.broad_seconds += times.broad;
+                cs.narrow_seconds += times.narrow;
+                cs.ccd_seconds += times.ccd;
+            }
             round += 1;
             if added == 0 || round == MAX_ROUNDS {
                 if crossing.0 > 0 {
