@@ -46,6 +46,15 @@ impl Diagnostic {
             path,
         }
     }
+    /// An error about node `node` (none when empty) and its port or parameter `field`,
+    /// outside any file: what a host's call did wrong.
+    pub fn about(node: &str, field: Option<&str>, message: impl Into<String>) -> Self {
+        let d = Diagnostic::error(vec![], message).node(node);
+        match field {
+            Some(f) => d.field(f),
+            None => d,
+        }
+    }
     /// Names the node (an empty id names none: file-level items such as graph outputs).
     pub(crate) fn node(mut self, id: &str) -> Self {
         self.node = (!id.is_empty()).then(|| id.to_string());

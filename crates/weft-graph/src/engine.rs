@@ -121,6 +121,11 @@ pub(crate) struct Slot {
     pub(crate) hash: Option<u128>,
     /// Hash of a source value or of what the kernel adds.
     pub external: u128,
+    /// Per output port, what a host feeds in place of the node's own result
+    /// ([`Graph::feed`]); empty when nothing is fed.
+    pub(crate) feeds: Vec<Option<crate::feed::Samples>>,
+    /// Hash of the feeds (zero when none).
+    pub(crate) feed_hash: u128,
     pub(crate) stats: NodeStats,
 }
 
@@ -147,6 +152,8 @@ impl Slot {
             ckpt_fps: 0.0,
             hash: None,
             external: 0,
+            feeds: Vec::new(),
+            feed_hash: 0,
             stats: NodeStats::default(),
         }
     }
@@ -187,7 +194,7 @@ pub type WarningSink = Arc<dyn Fn(&RunWarning) + Send + Sync>;
 
 /// The first non-finite number in a float-valued payload (`float`, `vec3`, `floats`).
 /// Physics types check their own data where they are made.
-fn non_finite(v: &Value) -> Option<f64> {
+pub(crate) fn non_finite(v: &Value) -> Option<f64> {
     let bad = |x: &f64| !x.is_finite();
     if let Some(x) = v.get::<f64>() {
         return bad(x).then_some(*x);
@@ -246,17 +253,37 @@ impl Graph {
                 .flatten()
                 .map(|&(s, _)| s)
                 .collect();
-            let mut eff_static = self.slots[n].spec.time == TimeClass::Static;
             for &s in &srcs {
                 debug_assert!(s < n, "slots must be in topological order");
-                eff_static &= self.slots[s].eff_static;
                 if !self.slots[s].downstream.contains(&n) {
                     self.slots[s].downstream.push(n);
                 }
             }
+        }
+        self.refresh_time();
+        self.mark = vec![0; self.slots.len()];
+    }
+
+    /// Recomputes which slots are effectively static: a node is when its type is static and
+    /// all its inputs are, or when a host feeds every output one value for all frames; a
+    /// fed output that varies by frame makes its node time-dependent.
+    pub(crate) fn refresh_time(&mut self) {
+        for n in 0..self.slots.len() {
+            let s = &self.slots[n];
+            let fed = crate::feed::time_of(&s.feeds, s.spec.outputs.len());
+            let eff_static = match fed {
+                crate::feed::FedTime::All { varies } => !varies,
+                crate::feed::FedTime::Some { varies } => {
+                    !varies
+                        && s.spec.time == TimeClass::Static
+                        && s.inputs
+                            .iter()
+                            .flatten()
+                            .all(|&(src, _)| self.slots[src].eff_static)
+                }
+            };
             self.slots[n].eff_static = eff_static;
         }
-        self.mark = vec![0; self.slots.len()];
     }
 
     /// The handle that stops this graph's evaluations (clone it to a Ctrl-C handler, or set
@@ -322,6 +349,14 @@ impl Graph {
     pub fn node_params(&self, id: &str) -> Option<&Params> {
         self.ids.get(id).map(|&n| &*self.slots[n].params)
     }
+    /// The type of output `port` of node `id` as compiled (an output typed by its input or a
+    /// parameter resolved), if both exist.
+    pub fn node_output_type(&self, id: &str, port: &str) -> Option<&str> {
+        let &n = self.ids.get(id)?;
+        let p = self.slots[n].spec.output_index(port)?;
+        Some(self.slots[n].out_type_names[p].as_str())
+    }
+
     /// True when any node (not only those feeding outputs) depends on time: a subgraph whose
     /// loop test or feedback reads the frame is time-dependent even if its outputs are not.
     pub(crate) fn any_time_dependent(&self) -> bool {
@@ -449,8 +484,10 @@ impl Graph {
         self.interrupted(n, ctx.frame)?;
         let t0 = Instant::now();
         self.timers.push(Duration::ZERO);
-        let result: Result<Vec<Option<Value>>, (NodeError, i64)> = if self.slots[n].kernel.is_none()
-        {
+        let all_fed = crate::feed::all_fed(&self.slots[n].feeds, self.slots[n].spec.outputs.len());
+        let result: Result<Vec<Option<Value>>, (NodeError, i64)> = if all_fed {
+            Ok(Vec::new())
+        } else if self.slots[n].kernel.is_none() {
             match &self.slots[n].source {
                 Some(v) => Ok(vec![Some(v.clone())]),
                 None => Err((
@@ -485,7 +522,7 @@ impl Graph {
         slot.stats.seconds += elapsed.saturating_sub(child).as_secs_f64();
         let frame = |f: i64, s: &Slot| (!s.eff_static).then_some(f);
         let outs = match result {
-            Ok(o) => o,
+            Ok(o) => crate::feed::apply(&slot.feeds, o, ctx.frame, slot.spec.outputs.len()),
             Err((NodeError::Upstream(e), _)) => return Err(*e),
             Err((e, f)) => {
                 return Err(EvalError {

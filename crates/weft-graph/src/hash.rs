@@ -42,6 +42,7 @@ impl Graph {
             h.update(&[0]);
             h.update(s.params.canonical().as_bytes());
             h.update(&s.external.to_le_bytes());
+            h.update(&s.feed_hash.to_le_bytes());
             for (i, conns) in s.inputs.iter().enumerate() {
                 h.update(&(i as u64).to_le_bytes());
                 for &(src, p) in conns {

@@ -253,8 +253,9 @@ impl Registry {
         self.port_type_by_id(v.payload_type_id())
     }
 
-    /// The port type whose payload is `id`, if registered.
-    pub(crate) fn port_type_by_id(&self, id: std::any::TypeId) -> Option<&PortType> {
+    /// The port type whose payload has Rust type `id` (a value's `payload_type_id`), if
+    /// registered.
+    pub fn port_type_by_id(&self, id: std::any::TypeId) -> Option<&PortType> {
         self.port_types.values().find(|t| t.type_id == id)
     }
 }
