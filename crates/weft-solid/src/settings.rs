@@ -101,6 +101,24 @@ pub enum StepError {
         /// The tolerance asked for.
         tolerance: f64,
     },
+    /// Newton's steps became small, but the contacts' ADMM did not meet the contact laws to
+    /// the tolerance within its iterations (the last Newton iteration's ADMM residuals).
+    #[error(
+        "the contacts did not converge: after {iterations} Newton iterations the step is {step:e} m/s, but the last ADMM ended {primal:e} m/s from the contact laws and still moving {dual:e} m/s (tolerance {tolerance:e}); {}",
+        if dual < tolerance { "it stalled, so the laws cannot be met this step (contacts that contradict each other, or a collider stepping into the solid faster than the step lets it leave)" } else { "more contact_iterations may help" }
+    )]
+    ContactsNotConverged {
+        /// Newton iterations done.
+        iterations: usize,
+        /// The last Newton step, ‖Δx‖∞/h [m/s].
+        step: f64,
+        /// The last ADMM's primal residual [m/s].
+        primal: f64,
+        /// The last ADMM's dual residual [m/s].
+        dual: f64,
+        /// The tolerance asked for.
+        tolerance: f64,
+    },
     /// The step would end with primitives of the solids passing through each other (found by
     /// continuous detection after the contacts' last re-solve): a smaller step is tried.
     #[error(

@@ -305,6 +305,8 @@ impl Integrator {
         let block = |s: &Self, f: usize, a: usize, b: usize| {
             s.col_ptr[3 * f + b] + 3 * s.diag_slot[f] as usize + a
         };
+        // The last ADMM round's (primal, dual) residuals, for the error when it does not end.
+        let mut last_admm = (f64::NAN, f64::NAN);
         for it in 0..settings.max_iterations.max(1) {
             if self.should_stop() {
                 return Err(StepError::Interrupted { iteration: it });
@@ -386,6 +388,7 @@ impl Integrator {
                     z[k] = zn;
                     r[k] = Vector3::from(rn);
                 }
+                last_admm = (primal, dual);
                 if primal < settings.tolerance && dual < settings.tolerance {
                     admm_converged = true;
                     break;
@@ -467,6 +470,17 @@ impl Integrator {
             }
         }
         if !stats.converged {
+            let step = stats.residuals.last().copied().unwrap_or(f64::NAN);
+            if step < settings.tolerance {
+                // Newton is done; the contacts are not.
+                return Err(StepError::ContactsNotConverged {
+                    iterations: stats.iterations,
+                    step,
+                    primal: last_admm.0,
+                    dual: last_admm.1,
+                    tolerance: settings.tolerance,
+                });
+            }
             return Err(stats.not_converged(settings.tolerance));
         }
         for (k, a) in active.iter().enumerate() {
