@@ -8,6 +8,8 @@ sphere), maps them to cloth_on_ball.json's two mesh inputs, bakes 24 frames, and
 - the baked positions equal `weft run` on the same graph and the same meshes (written to OBJ
   from what the add-on fed, read back exactly) bit for bit: both are the engine's f64 results;
 - an animated collider is fed frame by frame (a rising ball lifts the cloth);
+- a Curves object feeds a groom's strands, and the hair result gets a mesh object the bake
+  makes, whose cache holds the roots where the Curves had them;
 - the Mesh Cache the add-on wrote plays them back: the evaluated cloth at frame 12 equals the
   baked positions rounded to float32, exactly (Blender stores vertex positions in float32, so
   that is the closest it can hold; the rounding is the only difference);
@@ -133,6 +135,34 @@ for w in s.params:  # a parameter set in the panel: the ADMM gets more rounds
 moving, _ = weft_blender.bake(bpy.context)
 rise = moving["cloth"][-1][:, 1].max() - baked["cloth"][-1][:, 1].max()
 assert abs(rise - 0.05) < 0.005, f"the ball rose 0.05 m and lifted the cloth {rise} m"
+
+# Hair from a Blender Curves object (3 strands of 5 points, converted from a particle
+# system) fed as the C example's strands; the hair result gets a mesh object made by the
+# bake (its strands as edges), whose cache holds the roots where the Curves had them.
+bpy.ops.mesh.primitive_plane_add(size=0.2, location=(0.0, 0.0, 0.6))
+scalp = bpy.context.active_object
+settings = scalp.modifiers.new("hair", "PARTICLE_SYSTEM").particle_system.settings
+settings.type, settings.count, settings.hair_length, settings.hair_step = "HAIR", 3, 0.1, 4
+assert bpy.ops.curves.convert_from_particle_system() == {"FINISHED"}
+groom = next(o for o in bpy.data.objects if o.type == "CURVES")
+s.graph_path = str(HERE.parents[2] / "weft-capi/tests/c/host_scene.json")
+s.frame_start, s.frame_end = 1, 4
+assert bpy.ops.weft.load() == {"FINISHED"}, s.last_error
+for i in s.inputs:
+    i.object, i.animated = (groom, False) if i.node == "tuft" else (None, False)
+for r in s.results:
+    r.object = None
+hair, _ = weft_blender.bake(bpy.context)
+made = next(r.object for r in s.results if r.element == "hair")
+assert made is not None and len(made.data.vertices) == 15 and len(made.data.edges) == 12
+roots, _ = weft_blender._curves_world(groom, bpy.context.evaluated_depsgraph_get())
+for k in (0, 5, 10):  # each strand's root is held where the host put it
+    assert np.array_equal(hair["hair"][-1][k], weft_blender.to_weft(roots)[k]), k
+scene.frame_set(4)
+ev = made.evaluated_get(bpy.context.evaluated_depsgraph_get())
+co = np.empty(45, dtype=np.float32)
+ev.data.vertices.foreach_get("co", co)
+assert np.array_equal(co, weft_blender.to_blender(hair["hair"][-1]).astype(np.float32).reshape(-1))
 
 # A graph file with errors: a message, the panel keeps it, Blender goes on.
 bad = work / "bad.json"

@@ -71,7 +71,7 @@ class WeftResult(bpy.types.PropertyGroup):
     element: StringProperty(name="Element")
     kind: StringProperty(name="Kind")
     object: PointerProperty(name="Object", type=bpy.types.Object,
-                            description="The mesh object that shows this element (same vertex count and order)")
+                            description="The mesh object that shows this element (same vertex count and order); none: the bake makes one")
 
 
 class WeftParam(bpy.types.PropertyGroup):
@@ -256,6 +256,8 @@ class Bake:
         self.next = 0
         # element → list of (N, 3) f64 positions in Weft's axes, one per frame
         self.results = {r.element: [] for r in s.results}
+        # element → its triangles (cloth) or curve offsets (hair), from the first frame
+        self.topology = {}
 
     def step(self):
         """Pulls the next frame; whether frames remain."""
@@ -264,6 +266,9 @@ class Bake:
         scene = self.graph.pull_port(s.scene_node, s.scene_port, f, self.fps)
         for name, frames in self.results.items():
             frames.append(scene[name]["positions"])
+            if name not in self.topology:
+                e = scene[name]
+                self.topology[name] = e.get("triangles", e.get("offsets"))
         self.next += 1
         s.status = f"baked frame {f} ({self.next}/{len(self.frames)})"
         return self.next < len(self.frames)
@@ -277,8 +282,10 @@ class Bake:
         written = []
         for r in s.results:
             frames = self.results.get(r.element)
-            if r.object is None or not frames:
+            if not frames:
                 continue
+            if r.object is None:
+                r.object = self._new_object(r.element, r.kind, frames[0])
             obj = r.object
             if obj.type != "MESH" or len(obj.data.vertices) != len(frames[0]):
                 raise ValueError(
@@ -296,6 +303,24 @@ class Bake:
             written.append(path)
         s.status = f"baked {len(self.frames)} frames into {len(written)} cache(s)"
         return written
+
+
+    def _new_object(self, element, kind, positions):
+        """A mesh object to show an element no object was picked for: the cloth's triangles,
+        or the strands as edges (for a Curves object cannot take a mesh cache)."""
+        p = to_blender(positions)
+        topology = self.topology.get(element)
+        if kind == "cloth":
+            faces, edges = [tuple(map(int, t)) for t in topology], []
+        else:
+            faces = []
+            edges = [(int(k), int(k) + 1) for a, b in zip(topology[:-1], topology[1:])
+                     for k in range(int(a), int(b) - 1)]
+        mesh = bpy.data.meshes.new(f"{element} (Weft)")
+        mesh.from_pydata([tuple(v) for v in p], edges, faces)
+        obj = bpy.data.objects.new(f"{element} (Weft)", mesh)
+        self.context.scene.collection.objects.link(obj)
+        return obj
 
 
 def write_pc2(path, frames, start, rate):
