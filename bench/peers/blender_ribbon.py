@@ -40,7 +40,10 @@ pins.add(ends, 1.0, "REPLACE")
 cloth = ribbon.modifiers.new("cloth", "CLOTH")
 s = cloth.settings
 s.quality = quality
-s.mass = 0.01 * 1.2 / len(verts)  # the chain's 0.01 kg/m over 1.2 m, per vertex
+# Blender's default mass and air damping: the static shape of a near-inextensible ribbon
+# does not depend on its weight, and with the chain's real 0.3 g a vertex the default air
+# damping makes it creep like syrup (its sag still drifting after 16 s).
+s.mass = 0.3
 s.tension_stiffness = s.compression_stiffness = s.shear_stiffness = stiffness
 s.bending_stiffness = 0.0
 s.air_damping = 1.0
