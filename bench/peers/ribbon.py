@@ -9,7 +9,8 @@ with damping. Reference: the catenary's mid-span sag c(cosh(a/c) − 1), 2c sinh
 Each run's error is |sag − reference| at the last frame; its time is the simulation's wall
 time (Blender: its frame changes inside Blender; Weft: the `weft run` process). Sweeps:
 resolution (segments along the ribbon) for both, Blender's quality (steps a frame) and
-Weft's substeps. Writes OUT/ribbon.csv and prints the table. Skips Blender, with a message,
+Weft's substeps. Writes OUT/ribbon.csv, the chart OUT/ribbon.svg (error against time,
+log–log), and prints the table. Skips Blender, with a message,
 where it is not installed. Stdlib only.
 
 Blender runs with its default mass (0.3 kg a vertex) and air damping: the static shape of a
@@ -87,6 +88,39 @@ def run_blender(blender, n, quality, stiffness, obj, work):
     return d["sag"], d["seconds"], ""
 
 
+def chart(rows, ref, path):
+    """Error against wall time, log–log, one colour per solver, as a small standalone SVG (no
+    plotting library needed): each point is one run, labelled with its segments."""
+    pts = [(r[0], r[1], r[2], abs(r[3] - ref), r[4]) for r in rows if r[3] is not None and r[4] > 0]
+    if not pts:
+        return
+    W, H, M = 640, 420, 60
+    lx = [math.log10(p[4]) for p in pts]
+    ly = [math.log10(max(p[3], 1e-12)) for p in pts]
+    x0, x1 = math.floor(min(lx)), math.ceil(max(lx))
+    y0, y1 = math.floor(min(ly)), math.ceil(max(ly))
+    sx = lambda v: M + (v - x0) / max(x1 - x0, 1) * (W - 2 * M)
+    sy = lambda v: H - M - (v - y0) / max(y1 - y0, 1) * (H - 2 * M)
+    colour = {"weft": "#1f77b4", "blender": "#ff7f0e"}
+    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" font-family="sans-serif" font-size="11">',
+           f'<rect width="{W}" height="{H}" fill="white"/>',
+           f'<text x="{W / 2}" y="20" text-anchor="middle" font-size="13">hanging ribbon: error against wall time</text>']
+    for e in range(x0, x1 + 1):
+        out.append(f'<line x1="{sx(e)}" y1="{M}" x2="{sx(e)}" y2="{H - M}" stroke="#ddd"/>')
+        out.append(f'<text x="{sx(e)}" y="{H - M + 15}" text-anchor="middle">1e{e} s</text>')
+    for e in range(y0, y1 + 1):
+        out.append(f'<line x1="{M}" y1="{sy(e)}" x2="{W - M}" y2="{sy(e)}" stroke="#ddd"/>')
+        out.append(f'<text x="{M - 5}" y="{sy(e) + 4}" text-anchor="end">1e{e} m</text>')
+    for solver, n, setting, err, secs in pts:
+        x, y = sx(math.log10(secs)), sy(math.log10(max(err, 1e-12)))
+        out.append(f'<circle cx="{x:.1f}" cy="{y:.1f}" r="4" fill="{colour.get(solver, "gray")}"><title>{solver} {n} segments, {setting}: {err:.2e} m in {secs:.2f} s</title></circle>')
+        out.append(f'<text x="{x + 6:.1f}" y="{y - 4:.1f}" fill="{colour.get(solver, "gray")}" font-size="9">{n}</text>')
+    for k, (name, c) in enumerate(colour.items()):
+        out.append(f'<circle cx="{W - M - 80}" cy="{M + 10 + 16 * k}" r="4" fill="{c}"/><text x="{W - M - 70}" y="{M + 14 + 16 * k}">{name}</text>')
+    out.append("</svg>")
+    pathlib.Path(path).write_text("\n".join(out))
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--quick", action="store_true")
@@ -120,7 +154,8 @@ def main():
         for solver, n, setting, sag, s, err in rows:
             e = abs(sag - ref) if sag is not None else ""
             w.writerow([solver, n, setting, sag if sag is not None else "", ref, e, f"{s:.3f}", err])
-    print(f"catenary sag {ref:.6f} m; {FRAMES} frames at 24 fps")
+    chart(rows, ref, out / "ribbon.svg")
+    print(f"catenary sag {ref:.6f} m; {FRAMES} frames at 24 fps; chart: {out / 'ribbon.svg'}")
     print("| solver | segments | setting | sag [m] | error [m] | wall [s] |")
     print("|---|---:|---|---:|---:|---:|")
     for solver, n, setting, sag, s, err in rows:
