@@ -42,6 +42,14 @@ typedef enum WeftStatus {
   WEFT_PANIC = 8,
 } WeftStatus;
 
+// Which ports [`weft_graph_port_count`] and its companions list.
+typedef enum WeftPortDirection {
+  // The node's inputs.
+  WEFT_INPUT = 0,
+  // The node's outputs.
+  WEFT_OUTPUT = 1,
+} WeftPortDirection;
+
 // Which text of a problem [`weft_error_problem_text`] copies.
 typedef enum WeftProblemText {
   // What is wrong (with a hint when there is one).
@@ -51,14 +59,6 @@ typedef enum WeftProblemText {
   // The port or parameter, as `param 'name'` or `input 'name'` ("" when none).
   WEFT_PROBLEM_FIELD = 2,
 } WeftProblemText;
-
-// Which ports [`weft_graph_port_count`] and its companions list.
-typedef enum WeftPortDirection {
-  // The node's inputs.
-  WEFT_INPUT = 0,
-  // The node's outputs.
-  WEFT_OUTPUT = 1,
-} WeftPortDirection;
 
 // An error: its status, a message, and its problems (several for a graph file that failed
 // to load, one otherwise).
@@ -103,14 +103,15 @@ size_t weft_error_message(const struct WeftError *error, char *buf, size_t capac
 // `error` is NULL or a live error.
 size_t weft_error_problem_count(const struct WeftError *error);
 
-// Copies a text of problem `index` into `buf` (snprintf convention); its length, 0 when
-// `index` is out of range or the problem has no such text.
+// Copies a text of problem `index` (`which`: a [`WeftProblemText`]) into `buf` (snprintf
+// convention); its length, 0 when `index` or `which` is out of range or the problem has no
+// such text.
 //
 // # Safety
 // `error` is NULL or a live error; `buf` is NULL or writable for `capacity` bytes.
 size_t weft_error_problem_text(const struct WeftError *error,
                                size_t index,
-                               enum WeftProblemText which,
+                               uint32_t which,
                                char *buf,
                                size_t capacity);
 
@@ -185,13 +186,12 @@ const char *weft_graph_node_type(const struct WeftGraph *graph, size_t index);
 // `graph` is NULL or live; `id` is NULL or a NUL-terminated string.
 int64_t weft_graph_node_index(const struct WeftGraph *graph, const char *id);
 
-// The number of input or output ports of node `index` (0 when out of range).
+// The number of input or output ports of node `index` (`direction`: a
+// [`WeftPortDirection`]; 0 when out of range or unknown).
 //
 // # Safety
 // `graph` is NULL or live.
-size_t weft_graph_port_count(const struct WeftGraph *graph,
-                             size_t index,
-                             enum WeftPortDirection direction);
+size_t weft_graph_port_count(const struct WeftGraph *graph, size_t index, uint32_t direction);
 
 // The name of port `port` of node `index`, owned by the graph; NULL when out of range.
 //
@@ -199,7 +199,7 @@ size_t weft_graph_port_count(const struct WeftGraph *graph,
 // `graph` is NULL or live.
 const char *weft_graph_port_name(const struct WeftGraph *graph,
                                  size_t index,
-                                 enum WeftPortDirection direction,
+                                 uint32_t direction,
                                  size_t port);
 
 // The type of port `port` of node `index` (`mesh`, `curves`, `scene`, `float`, …; an
@@ -209,7 +209,7 @@ const char *weft_graph_port_name(const struct WeftGraph *graph,
 // `graph` is NULL or live.
 const char *weft_graph_port_type(const struct WeftGraph *graph,
                                  size_t index,
-                                 enum WeftPortDirection direction,
+                                 uint32_t direction,
                                  size_t port);
 
 // The number of parameters of node `index` (0 when out of range).

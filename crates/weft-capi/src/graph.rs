@@ -137,15 +137,19 @@ unsafe fn with_graph<T>(
         ));
     };
     if h.poisoned {
-        return Err(Failure::new(
-            WeftStatus::WeftPanic,
-            "an earlier internal error left this graph half-updated; load it again",
-        ));
+        return Err(poisoned());
     }
     h.poisoned = true;
     let r = f(&mut h.graph);
     h.poisoned = false;
     r
+}
+
+fn poisoned() -> Failure {
+    Failure::new(
+        WeftStatus::WeftPanic,
+        "an earlier internal error left this graph half-updated; load it again",
+    )
 }
 
 fn rejected(d: Box<Diagnostic>) -> Failure {
@@ -319,14 +323,19 @@ fn pair_text(p: &(CString, CString), which: usize) -> *const c_char {
     }
 }
 
-fn ports(n: &NodeNames, dir: WeftPortDirection) -> &[(CString, CString)] {
-    match dir {
-        WeftPortDirection::WeftInput => &n.inputs,
-        WeftPortDirection::WeftOutput => &n.outputs,
+/// The ports of `n` in `direction` (a [`WeftPortDirection`] as an integer: C may pass any
+/// value in an enum, and an invalid Rust enum would be undefined behaviour); none for an
+/// unknown direction.
+fn ports(n: &NodeNames, direction: u32) -> &[(CString, CString)] {
+    match direction {
+        d if d == WeftPortDirection::WeftInput as u32 => &n.inputs,
+        d if d == WeftPortDirection::WeftOutput as u32 => &n.outputs,
+        _ => &[],
     }
 }
 
-/// The number of input or output ports of node `index` (0 when out of range).
+/// The number of input or output ports of node `index` (`direction`: a
+/// [`WeftPortDirection`]; 0 when out of range or unknown).
 ///
 /// # Safety
 /// `graph` is NULL or live.
@@ -334,7 +343,7 @@ fn ports(n: &NodeNames, dir: WeftPortDirection) -> &[(CString, CString)] {
 pub unsafe extern "C" fn weft_graph_port_count(
     graph: *const WeftGraph,
     index: usize,
-    direction: WeftPortDirection,
+    direction: u32,
 ) -> usize {
     // SAFETY: contract passed through.
     unsafe { node(graph, index) }.map_or(0, |n| ports(n, direction).len())
@@ -348,7 +357,7 @@ pub unsafe extern "C" fn weft_graph_port_count(
 pub unsafe extern "C" fn weft_graph_port_name(
     graph: *const WeftGraph,
     index: usize,
-    direction: WeftPortDirection,
+    direction: u32,
     port: usize,
 ) -> *const c_char {
     // SAFETY: contract passed through.
@@ -366,7 +375,7 @@ pub unsafe extern "C" fn weft_graph_port_name(
 pub unsafe extern "C" fn weft_graph_port_type(
     graph: *const WeftGraph,
     index: usize,
-    direction: WeftPortDirection,
+    direction: u32,
     port: usize,
 ) -> *const c_char {
     // SAFETY: contract passed through.
@@ -434,7 +443,7 @@ pub unsafe extern "C" fn weft_graph_param_json(
 ) -> usize {
     quiet(0, || {
         // SAFETY: NULL or live, by contract.
-        let Some(h) = (unsafe { graph.as_ref() }) else {
+        let Some(h) = (unsafe { graph.as_ref() }).filter(|h| !h.poisoned) else {
             return 0;
         };
         let Some(n) = h.nodes.get(index) else {
@@ -742,7 +751,7 @@ pub unsafe extern "C" fn weft_graph_feed_curves(
                 ),
             ));
         }
-        if let Some(k) = off.windows(2).position(|w| w[1] < w[0] + 2) {
+        if let Some(k) = off.windows(2).position(|w| w[1] < w[0].saturating_add(2)) {
             return Err(rejected_data(
                 node,
                 port,
@@ -912,7 +921,7 @@ pub unsafe extern "C" fn weft_graph_stats_json(
 ) -> usize {
     quiet(0, || {
         // SAFETY: NULL or live, by contract.
-        let Some(h) = (unsafe { graph.as_ref() }) else {
+        let Some(h) = (unsafe { graph.as_ref() }).filter(|h| !h.poisoned) else {
             return 0;
         };
         let j = serde_json::json!({ "nodes": h.graph.stats() });
@@ -946,6 +955,9 @@ pub unsafe extern "C" fn weft_graph_fed_frames(
                 "graph is NULL",
             ));
         };
+        if h.poisoned {
+            return Err(poisoned());
+        }
         // SAFETY: string contracts passed through.
         let (node, port) = unsafe { (str_arg(node, "node")?, str_arg(port, "port")?) };
         let Some(fed) = h

@@ -347,8 +347,9 @@ pub enum WeftProblemText {
     WeftProblemField = 2,
 }
 
-/// Copies a text of problem `index` into `buf` (snprintf convention); its length, 0 when
-/// `index` is out of range or the problem has no such text.
+/// Copies a text of problem `index` (`which`: a [`WeftProblemText`]) into `buf` (snprintf
+/// convention); its length, 0 when `index` or `which` is out of range or the problem has no
+/// such text.
 ///
 /// # Safety
 /// `error` is NULL or a live error; `buf` is NULL or writable for `capacity` bytes.
@@ -356,7 +357,7 @@ pub enum WeftProblemText {
 pub unsafe extern "C" fn weft_error_problem_text(
     error: *const WeftError,
     index: usize,
-    which: WeftProblemText,
+    which: u32,
     buf: *mut c_char,
     capacity: usize,
 ) -> usize {
@@ -366,10 +367,14 @@ pub unsafe extern "C" fn weft_error_problem_text(
             return 0;
         };
         let empty = CString::default();
+        // An integer, not the enum: C may pass any value (an invalid Rust enum is UB).
         let text = match which {
-            WeftProblemText::WeftProblemMessage => &p.message,
-            WeftProblemText::WeftProblemNode => p.node.as_ref().unwrap_or(&empty),
-            WeftProblemText::WeftProblemField => p.field.as_ref().unwrap_or(&empty),
+            w if w == WeftProblemText::WeftProblemMessage as u32 => &p.message,
+            w if w == WeftProblemText::WeftProblemNode as u32 => p.node.as_ref().unwrap_or(&empty),
+            w if w == WeftProblemText::WeftProblemField as u32 => {
+                p.field.as_ref().unwrap_or(&empty)
+            }
+            _ => return 0,
         };
         // SAFETY: buffer contract passed through.
         unsafe { write_str(text, buf, capacity) }

@@ -120,7 +120,14 @@ fn the_c_example_uses_every_call_and_bakes_what_rust_bakes() {
     );
     let graph = crate_dir.join("tests/c/host_scene.json");
     let bin = tmp.path().join("baked.bin");
-    let ran = Command::new(&exe).arg(&graph).arg(&bin).output().unwrap();
+    // Cargo's LD_LIBRARY_PATH for tests may name target/debug first, where a `cargo build`
+    // leaves an older copy of the library; this run must load the one built for the test.
+    let ran = Command::new(&exe)
+        .arg(&graph)
+        .arg(&bin)
+        .env("LD_LIBRARY_PATH", &lib)
+        .output()
+        .unwrap();
     let stdout = String::from_utf8_lossy(&ran.stdout);
     assert!(
         ran.status.success(),

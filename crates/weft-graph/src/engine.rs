@@ -423,7 +423,10 @@ impl Graph {
                 continue;
             }
             need.push(n);
-            if !self.pulls_itself(n) {
+            // A node whose every output a host feeds is not computed: nor are its inputs.
+            let all_fed =
+                crate::feed::all_fed(&self.slots[n].feeds, self.slots[n].spec.outputs.len());
+            if !self.pulls_itself(n) && !all_fed {
                 for &(s, _) in self.slots[n].inputs.iter().flatten() {
                     if self.mark[s] != generation {
                         stack.push(s);

@@ -305,6 +305,18 @@ mod tests {
     }
 
     #[test]
+    fn a_fully_fed_node_pulls_nothing_upstream() {
+        let mut g = graph();
+        g.feed("b", "out", None, Value::new(7.0f64)).unwrap();
+        assert_eq!(y(&mut g, 0), 7.0);
+        assert_eq!(
+            g.evaluations("a"),
+            0,
+            "a fed node's inputs are not computed"
+        );
+    }
+
+    #[test]
     fn bad_feeds_are_refused_with_the_node_named_and_nothing_changes() {
         let mut g = graph();
         let e = g.feed("nope", "out", None, Value::new(1.0f64)).unwrap_err();

@@ -9,6 +9,7 @@
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1};
 use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
+use pyo3::sync::MutexExt;
 use pyo3::types::{PyDict, PyList};
 use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
 use weft_graph::{Context, Diagnostic, Graph as Engine, Interrupt, Registry, Value};
@@ -161,6 +162,9 @@ impl Interrupter {
 #[pyclass(module = "weft._weft")]
 struct Graph {
     engine: Mutex<Engine>,
+    /// The engine's stop request, outside the mutex: a Cancel must not wait for the pull it
+    /// stops.
+    interrupt: Interrupt,
 }
 
 fn poisoned() -> PyErr {
@@ -170,13 +174,16 @@ fn poisoned() -> PyErr {
 impl Graph {
     fn new(engine: Engine) -> Self {
         Graph {
+            interrupt: engine.interrupt(),
             engine: Mutex::new(engine),
         }
     }
 
-    /// The engine, or an error when an internal error (a panic) left it half-updated.
-    fn engine(&self) -> PyResult<MutexGuard<'_, Engine>> {
-        self.engine.lock().map_err(|_| poisoned())
+    /// The engine, or an error when an internal error (a panic) left it half-updated. While
+    /// another thread holds it (a pull, with the GIL released), waiting releases the GIL too,
+    /// so that thread can finish.
+    fn engine(&self, py: Python<'_>) -> PyResult<MutexGuard<'_, Engine>> {
+        self.engine.lock_py_attached(py).map_err(|_| poisoned())
     }
 }
 
@@ -295,64 +302,71 @@ impl Graph {
     }
 
     /// Node ids in evaluation order.
-    fn nodes(&self) -> PyResult<Vec<String>> {
-        Ok(self.engine()?.node_ids().map(str::to_string).collect())
+    fn nodes(&self, py: Python<'_>) -> PyResult<Vec<String>> {
+        Ok(self.engine(py)?.node_ids().map(str::to_string).collect())
     }
 
     /// A node's description: type, doc, inputs and outputs as lists of (name, type), and
     /// parameters as a list of dicts (name, kind, default, unit, doc, value).
     fn describe<'py>(&self, py: Python<'py>, node: &str) -> PyResult<Bound<'py, PyDict>> {
-        let engine = self.engine()?;
-        let spec = engine.node_spec(node).ok_or_else(|| {
-            graph_error(py, Box::new(Diagnostic::about(node, None, "no such node")))
-        })?;
-        let params = engine.node_params(node).expect("the node exists");
+        // Everything is read under the lock into Rust values, and the lock dropped, before
+        // any Python runs (Python may switch threads, and another thread may want the lock).
+        let (name, doc, inputs, outputs, params) = {
+            let engine = self.engine(py)?;
+            let spec = engine.node_spec(node).ok_or_else(|| {
+                graph_error(py, Box::new(Diagnostic::about(node, None, "no such node")))
+            })?;
+            let values = engine.node_params(node).expect("the node exists");
+            let inputs: Vec<(String, String)> = spec
+                .inputs
+                .iter()
+                .map(|p| {
+                    let ty = match &p.ty {
+                        weft_graph::TypeRef::Named(n) => n.clone(),
+                        _ => "any".into(),
+                    };
+                    (p.name.clone(), ty)
+                })
+                .collect();
+            let outputs: Vec<(String, String)> = spec
+                .outputs
+                .iter()
+                .map(|p| {
+                    let ty = engine.node_output_type(node, &p.name).unwrap_or("any");
+                    (p.name.clone(), ty.to_string())
+                })
+                .collect();
+            let params: Vec<String> = spec
+                .params
+                .iter()
+                .map(|p| {
+                    let mut j = serde_json::to_value(p).unwrap_or(serde_json::Value::Null);
+                    if let Some(o) = j.as_object_mut() {
+                        let v = values.get(&p.name).cloned();
+                        o.insert("value".into(), v.unwrap_or(serde_json::Value::Null));
+                    }
+                    j.to_string()
+                })
+                .collect();
+            (spec.name.clone(), spec.doc.clone(), inputs, outputs, params)
+        };
         let d = PyDict::new(py);
-        d.set_item("type", &spec.name)?;
-        d.set_item("doc", &spec.doc)?;
-        let inputs: Vec<(String, String)> = spec
-            .inputs
-            .iter()
-            .map(|p| {
-                let ty = match &p.ty {
-                    weft_graph::TypeRef::Named(n) => n.clone(),
-                    _ => "any".into(),
-                };
-                (p.name.clone(), ty)
-            })
-            .collect();
+        d.set_item("type", name)?;
+        d.set_item("doc", doc)?;
         d.set_item("inputs", inputs)?;
-        let outputs: Vec<(String, String)> = spec
-            .outputs
-            .iter()
-            .map(|p| {
-                let ty = engine.node_output_type(node, &p.name).unwrap_or("any");
-                (p.name.clone(), ty.to_string())
-            })
-            .collect();
         d.set_item("outputs", outputs)?;
         let json = py.import("json")?;
         let list = PyList::empty(py);
-        for p in &spec.params {
-            let mut j = serde_json::to_value(p).unwrap_or(serde_json::Value::Null);
-            if let Some(o) = j.as_object_mut() {
-                o.insert(
-                    "value".into(),
-                    params
-                        .get(&p.name)
-                        .cloned()
-                        .unwrap_or(serde_json::Value::Null),
-                );
-            }
-            list.append(json.call_method1("loads", (j.to_string(),))?)?;
+        for p in params {
+            list.append(json.call_method1("loads", (p,))?)?;
         }
         d.set_item("params", list)?;
         Ok(d)
     }
 
     /// The graph's outputs: name → type.
-    fn outputs(&self) -> PyResult<Vec<(String, String)>> {
-        let engine = self.engine()?;
+    fn outputs(&self, py: Python<'_>) -> PyResult<Vec<(String, String)>> {
+        let engine = self.engine(py)?;
         Ok(engine
             .output_names()
             .map(|o| {
@@ -379,7 +393,7 @@ impl Graph {
             .extract()?;
         let v: serde_json::Value = serde_json::from_str(&text)
             .map_err(|e| pyo3::exceptions::PyValueError::new_err(e.to_string()))?;
-        self.engine()?
+        self.engine(py)?
             .set_param(node, param, v)
             .map_err(|d| graph_error(py, d))
     }
@@ -417,7 +431,7 @@ impl Graph {
             positions: xyz,
             triangles: tri.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
         };
-        self.engine()?
+        self.engine(py)?
             .feed(node, port, frame, Value::new(mesh))
             .map_err(|d| graph_error(py, d))
     }
@@ -443,14 +457,14 @@ impl Graph {
                 xyz.len()
             )));
         }
-        if let Some(k) = off.windows(2).position(|w| w[1] < w[0] + 2) {
+        if let Some(k) = off.windows(2).position(|w| w[1] < w[0].saturating_add(2)) {
             return Err(refuse(format!("curve {k} has fewer than 2 vertices")));
         }
         let curves = Curves {
             positions: xyz,
             offsets: off.to_vec(),
         };
-        self.engine()?
+        self.engine(py)?
             .feed(node, port, frame, Value::new(curves))
             .map_err(|d| graph_error(py, d))
     }
@@ -465,22 +479,22 @@ impl Graph {
         value: f64,
         frame: Option<i64>,
     ) -> PyResult<()> {
-        self.engine()?
+        self.engine(py)?
             .feed(node, port, frame, Value::new(value))
             .map_err(|d| graph_error(py, d))
     }
 
     /// Stops feeding an output; whether it was fed.
     fn unfeed(&self, py: Python<'_>, node: &str, port: &str) -> PyResult<bool> {
-        self.engine()?
+        self.engine(py)?
             .unfeed(node, port)
             .map_err(|d| graph_error(py, d))
     }
 
     /// The fed outputs: a list of (node, port, frames or None).
-    fn fed(&self) -> PyResult<Vec<FedRow>> {
+    fn fed(&self, py: Python<'_>) -> PyResult<Vec<FedRow>> {
         Ok(self
-            .engine()?
+            .engine(py)?
             .fed_outputs()
             .into_iter()
             .map(|f| (f.node, f.port, f.frames))
@@ -489,8 +503,12 @@ impl Graph {
 
     /// Sets the directory under which file outputs write (None: the working directory).
     #[pyo3(signature = (directory = None))]
-    fn set_output_root(&self, directory: Option<std::path::PathBuf>) -> PyResult<()> {
-        self.engine()?.set_output_root(directory);
+    fn set_output_root(
+        &self,
+        py: Python<'_>,
+        directory: Option<std::path::PathBuf>,
+    ) -> PyResult<()> {
+        self.engine(py)?.set_output_root(directory);
         Ok(())
     }
 
@@ -504,8 +522,8 @@ impl Graph {
         fps: f64,
     ) -> PyResult<Bound<'py, PyAny>> {
         let ctx = context(frame, fps)?;
-        if self.engine()?.output_type(output).is_none() {
-            let known: Vec<String> = self.engine()?.output_names().map(String::from).collect();
+        if self.engine(py)?.output_type(output).is_none() {
+            let known: Vec<String> = self.engine(py)?.output_names().map(String::from).collect();
             return Err(graph_error(
                 py,
                 Box::new(Diagnostic::about(
@@ -542,7 +560,7 @@ impl Graph {
         fps: f64,
     ) -> PyResult<Bound<'py, PyAny>> {
         let ctx = context(frame, fps)?;
-        if self.engine()?.node_output_type(node, port).is_none() {
+        if self.engine(py)?.node_output_type(node, port).is_none() {
             return Err(graph_error(
                 py,
                 Box::new(Diagnostic::about(node, None, format!("no output '{port}'"))),
@@ -562,13 +580,13 @@ impl Graph {
     }
 
     /// Per-node statistics as JSON text (as `weft run --stats-json` writes them).
-    fn stats_json(&self) -> PyResult<String> {
-        Ok(serde_json::json!({ "nodes": self.engine()?.stats() }).to_string())
+    fn stats_json(&self, py: Python<'_>) -> PyResult<String> {
+        Ok(serde_json::json!({ "nodes": self.engine(py)?.stats() }).to_string())
     }
 
     /// A stop request for this graph's pulls, to set from another thread.
-    fn interrupter(&self) -> PyResult<Interrupter> {
-        Ok(Interrupter(self.engine()?.interrupt()))
+    fn interrupter(&self) -> Interrupter {
+        Interrupter(self.interrupt.clone())
     }
 }
 

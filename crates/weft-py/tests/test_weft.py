@@ -117,6 +117,8 @@ def test_bad_host_data_is_refused_and_changes_nothing():
         g.feed("boxmesh", "mesh", (bad, t))
     with pytest.raises(weft.GraphError, match="fewer than 2"):
         g.feed("tuft", "curves", (strands()[0], np.array([0, 1, 10], dtype=np.uint32)))
+    with pytest.raises(weft.GraphError, match="fewer than 2"):  # no wrap-around in the check
+        g.feed("tuft", "curves", (strands()[0], np.array([0, 0xFFFFFFFF, 10], dtype=np.uint32)))
     with pytest.raises(weft.GraphError):
         g.feed("solve", "scene", 1.0)
     with pytest.raises(weft.GraphError):

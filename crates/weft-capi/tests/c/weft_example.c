@@ -28,6 +28,9 @@ static int failures = 0;
         }                                                                        \
     } while (0)
 
+/* String equality that is false, not undefined, when a call returned NULL. */
+static int eq(const char *a, const char *b) { return a != NULL && b != NULL && strcmp(a, b) == 0; }
+
 /* Prints an error with all its problems, then frees it. */
 static void report(const char *what, WeftError *e) {
     char message[512];
@@ -111,22 +114,23 @@ int main(int argc, char **argv) {
     size_t nodes = weft_graph_node_count(g);
     CHECK(nodes > 10);
     int64_t grid = weft_graph_node_index(g, "grid");
-    CHECK(grid >= 0 && strcmp(weft_graph_node_id(g, (size_t)grid), "grid") == 0);
-    CHECK(strcmp(weft_graph_node_type(g, (size_t)grid), "geo.grid") == 0);
+    CHECK(grid >= 0 && eq(weft_graph_node_id(g, (size_t)grid), "grid"));
+    CHECK(eq(weft_graph_node_type(g, (size_t)grid), "geo.grid"));
     CHECK(weft_graph_node_index(g, "nope") == -1);
     CHECK(weft_graph_node_id(g, nodes) == NULL);
     CHECK(weft_graph_port_count(g, (size_t)grid, WEFT_INPUT) == 0);
     CHECK(weft_graph_port_count(g, (size_t)grid, WEFT_OUTPUT) == 1);
-    CHECK(strcmp(weft_graph_port_name(g, (size_t)grid, WEFT_OUTPUT, 0), "mesh") == 0);
-    CHECK(strcmp(weft_graph_port_type(g, (size_t)grid, WEFT_OUTPUT, 0), "mesh") == 0);
+    CHECK(weft_graph_port_count(g, (size_t)grid, 7) == 0); /* an unknown direction: none */
+    CHECK(eq(weft_graph_port_name(g, (size_t)grid, WEFT_OUTPUT, 0), "mesh"));
+    CHECK(eq(weft_graph_port_type(g, (size_t)grid, WEFT_OUTPUT, 0), "mesh"));
     int64_t solve = weft_graph_node_index(g, "solve");
-    CHECK(solve >= 0 && strcmp(weft_graph_port_type(g, (size_t)solve, WEFT_INPUT, 0), "element") == 0);
+    CHECK(solve >= 0 && eq(weft_graph_port_type(g, (size_t)solve, WEFT_INPUT, 0), "element"));
     size_t params = weft_graph_param_count(g, (size_t)grid);
     int found_nx = 0;
     for (size_t p = 0; p < params; p++) {
-        if (strcmp(weft_graph_param_name(g, (size_t)grid, p), "nx") == 0) {
+        if (eq(weft_graph_param_name(g, (size_t)grid, p), "nx")) {
             found_nx = 1;
-            CHECK(strcmp(weft_graph_param_kind(g, (size_t)grid, p), "int") == 0);
+            CHECK(eq(weft_graph_param_kind(g, (size_t)grid, p), "int"));
             char json[512];
             size_t n = weft_graph_param_json(g, (size_t)grid, p, json, sizeof json);
             CHECK(n < sizeof json && strstr(json, "\"value\":5") != NULL);
@@ -191,6 +195,10 @@ int main(int argc, char **argv) {
     CHECK(weft_graph_feed_f64(g, "solve", "scene", 0, 1.0, &err) == WEFT_REJECTED);
     weft_error_free(err);
     err = NULL;
+    uint32_t huge_offsets[3] = {0, 0xFFFFFFFFu, 10}; /* must not wrap around */
+    CHECK(weft_graph_feed_curves(g, "tuft", "curves", 0, strands, 10, huge_offsets, 2, &err) == WEFT_REJECTED);
+    weft_error_free(err);
+    err = NULL;
     uint32_t bad_offsets[3] = {0, 1, 10};
     CHECK(weft_graph_feed_curves(g, "tuft", "curves", 0, strands, 10, bad_offsets, 2, &err) == WEFT_REJECTED);
     weft_error_free(err);
@@ -208,7 +216,7 @@ int main(int argc, char **argv) {
     WeftValue *gain = weft_graph_pull(g, "gain", 0, 0.0, NULL);
     double k = 0.0;
     size_t len = 0;
-    CHECK(gain != NULL && strcmp(weft_value_type(gain), "float") == 0);
+    CHECK(gain != NULL && eq(weft_value_type(gain), "float"));
     CHECK(weft_value_f64s(gain, &k, 1, &len, NULL) == WEFT_OK && len == 1 && k == 2.5);
     weft_value_free(gain);
     WeftValue *curves = weft_graph_pull_port(g, "tuft", "curves", 0, 0.0, NULL);
@@ -248,7 +256,7 @@ int main(int argc, char **argv) {
             report("pull", err);
             return 1;
         }
-        CHECK(strcmp(weft_value_type(scene), "scene") == 0);
+        CHECK(eq(weft_value_type(scene), "scene"));
         size_t elements = weft_value_element_count(scene);
         CHECK(elements == 6 && weft_value_element_name(scene, elements) == NULL);
         const char *names[2] = {"cloth", "hair"};

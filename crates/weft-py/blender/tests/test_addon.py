@@ -85,6 +85,7 @@ assert len(written) == 1 and len(baked["cloth"]) == FRAMES[1] - FRAMES[0] + 1
 run = subprocess.run(
     [weft_bin, "run", str(GRAPH), "--frames", f"{FRAMES[0]}..{FRAMES[1]}",
      "--set", f"clothmesh.path={work / 'cloth.obj'}", "--set", f"ballmesh.path={work / 'ball.obj'}",
+     "--set", f"solve.start_frame={FRAMES[0]}",  # the add-on starts the solver at the bake's start
      "--out", str(work / "run"), "--no-checkpoints"],
     capture_output=True, text=True)
 assert run.returncode == 0, run.stdout + run.stderr

@@ -106,22 +106,30 @@ def _settings(context):
     return context.scene.weft
 
 
+def _panel_value(w):
+    return {"float": w.float_value, "int": w.int_value, "bool": w.bool_value}[w.kind]
+
+
+def _changed(kind, value, loaded):
+    """Whether a panel value differs from the file's. Blender keeps float properties in
+    float32, so a float counts as changed only when its float32 differs from the file
+    value's: an untouched 0.1 stays the file's 0.1, not float32(0.1)."""
+    if kind == "float":
+        return np.float32(value) != np.float32(loaded)
+    return value != loaded
+
+
 def load_graph(context):
     """Loads the graph file and fills the inputs, results and parameters from it. Raises
-    weft.WeftError (LoadError lists every problem)."""
+    weft.WeftError (LoadError lists every problem); then nothing in the panel changed."""
+    import ast
+
     weft = _weft()
     s = _settings(context)
-    g = weft.Graph.load(bpy.path.abspath(s.graph_path))
-    old_inputs = {(i.node, i.port): (i.object, i.animated) for i in s.inputs}
-    old_results = {r.element: r.object for r in s.results}
-    # What the panel shows now: reloading the same file keeps the user's parameter changes.
     path = bpy.path.abspath(s.graph_path)
-    old_params = {(w.node, w.param): (w.kind, w.float_value, w.int_value, w.bool_value)
-                  for w in s.params} if s.loaded_path == path else {}
-    s.inputs.clear()
-    s.results.clear()
-    s.params.clear()
-    solver = None
+    g = weft.Graph.load(path)
+    # Read everything first; the panel changes only once the graph is known to be usable.
+    solver, inputs, params, results = None, [], [], []
     for node in g.nodes:
         d = g.describe(node)
         if d["type"].startswith("solver.") and any(ty == "scene" for _, ty in d["outputs"]):
@@ -129,37 +137,53 @@ def load_graph(context):
         for port, ty in d["outputs"]:
             # Geometry sources (no inputs): what a host provides.
             if ty in ("mesh", "curves") and not d["inputs"]:
-                i = s.inputs.add()
-                i.node, i.port, i.kind = node, port, ty
-                i.object, i.animated = old_inputs.get((node, port), (None, True))
+                inputs.append((node, port, ty))
         for p in d["params"]:
             kind = p["kind"] if isinstance(p["kind"], str) else next(iter(p["kind"]))
-            if kind not in ("float", "int", "bool") or node == solver and p["name"] == "start_frame":
-                continue
-            w = s.params.add()
-            w.node, w.param, w.kind = node, p["name"], kind
-            value = p["value"]
-            if kind == "float":
-                w.float_value = float(value)
-            elif kind == "int":
-                w.int_value = int(value)
-            else:
-                w.bool_value = bool(value)
-            w.loaded = repr(value)
-            kept = old_params.get((node, p["name"]))
-            if kept is not None and kept[0] == kind:
-                _, w.float_value, w.int_value, w.bool_value = kept
+            # start_frame is the bake's first frame, set at each bake.
+            if kind in ("float", "int", "bool") and p["name"] != "start_frame":
+                params.append((node, p["name"], kind, p["value"]))
+        # The simulated elements, from the nodes that make them (nothing is evaluated: the
+        # inputs may not be mapped yet).
+        if d["type"] in ("convert.cloth", "convert.hair"):
+            name = next(p["value"] for p in d["params"] if p["name"] == "name")
+            results.append((name, d["type"].split(".")[1]))
     if solver is None:
         raise weft.GraphError("the graph has no solver node with a scene output to bake")
+    old_inputs = {(i.node, i.port): (i.object, i.animated) for i in s.inputs}
+    old_results = {r.element: r.object for r in s.results}
+    # Reloading the same file keeps the parameters the user changed in the panel (and takes
+    # the file's value for the others, which may have been edited).
+    old_params = {}
+    if s.loaded_path == path:
+        for w in s.params:
+            value = _panel_value(w)
+            if _changed(w.kind, value, ast.literal_eval(w.loaded)):
+                old_params[(w.node, w.param)] = (w.kind, value)
+    s.inputs.clear()
+    s.results.clear()
+    s.params.clear()
+    for node, port, ty in inputs:
+        i = s.inputs.add()
+        i.node, i.port, i.kind = node, port, ty
+        i.object, i.animated = old_inputs.get((node, port), (None, True))
+    for node, name, kind, value in params:
+        w = s.params.add()
+        w.node, w.param, w.kind = node, name, kind
+        kept_kind, kept = old_params.get((node, name), (kind, value))
+        value = kept if kept_kind == kind else value
+        if kind == "float":
+            w.float_value = float(value)
+        elif kind == "int":
+            w.int_value = int(value)
+        else:
+            w.bool_value = bool(value)
+        w.loaded = repr(next(v for n, p, k, v in params if (n, p) == (node, name)))
+    for name, kind in results:
+        r = s.results.add()
+        r.element, r.kind = name, kind
+        r.object = old_results.get(name)
     s.scene_node, s.scene_port = solver, "scene"
-    # The simulated elements, from the nodes that make them (nothing is evaluated: the
-    # inputs may not be mapped yet).
-    for node in g.nodes:
-        ty = g.describe(node)["type"]
-        if ty in ("convert.cloth", "convert.hair"):
-            r = s.results.add()
-            r.element, r.kind = g.params(node)["name"], ty.split(".")[1]
-            r.object = old_results.get(r.element)
     s.loaded_path = path
     s.last_error = ""
     s.status = f"loaded: {len(s.inputs)} inputs, {len(s.results)} simulated elements"
@@ -212,38 +236,41 @@ def _geometry(i, depsgraph):
 
 
 def _apply_params(g, s):
-    """Sets the parameters changed in the panel. Blender keeps float properties in float32,
-    so a float counts as changed only when its float32 differs from the file's value's: an
-    untouched 0.1 stays the file's 0.1, not float32(0.1)."""
+    """Sets the parameters whose panel value differs from the file's."""
     import ast
 
     for w in s.params:
-        loaded = ast.literal_eval(w.loaded)
-        if w.kind == "float":
-            if np.float32(w.float_value) != np.float32(loaded):
-                g.set(w.node, w.param, float(w.float_value))
-        elif w.kind == "int" and w.int_value != loaded:
-            g.set(w.node, w.param, w.int_value)
-        elif w.kind == "bool" and w.bool_value != loaded:
-            g.set(w.node, w.param, w.bool_value)
+        value = _panel_value(w)
+        if _changed(w.kind, value, ast.literal_eval(w.loaded)):
+            g.set(w.node, w.param, float(value) if w.kind == "float" else value)
 
 
 class Bake:
     """A bake in progress: the graph with the host's data fed, pulled one frame at a time
-    (so the interface can show progress and stop it)."""
+    (so the interface can show progress and stop it). Everything it needs from the panel
+    is read when it starts: changing the panel during a bake changes the next bake."""
 
     def __init__(self, context):
         s = _settings(context)
         if s.frame_end < s.frame_start:
             raise ValueError(f"the frame range {s.frame_start}..{s.frame_end} is empty")
-        self.context = context
+        self.scene = scene = context.scene
         self.graph = load_graph(context)
         _apply_params(self.graph, s)
-        scene = context.scene
+        # The first baked frame is the objects' shape at the range's start.
+        self.graph.set(s.scene_node, "start_frame", s.frame_start)
+        self.source = (s.scene_node, s.scene_port)
+        self.cache_dir = bpy.path.abspath(s.cache_dir)
         self.fps = scene.render.fps / scene.render.fps_base
         mapped = [i for i in s.inputs if i.object is not None]
+        # An input object may show an earlier bake through its Weft mesh cache: feed its own
+        # shape, not that.
+        muted = [(m, m.show_viewport) for i in mapped for m in i.object.modifiers
+                 if m.name == "Weft" and m.type == "MESH_CACHE"]
         current = scene.frame_current
         try:
+            for m, _ in muted:
+                m.show_viewport = False
             for i in mapped:
                 frames = range(s.frame_start, s.frame_end + 1) if i.animated else [s.frame_start]
                 for f in frames:
@@ -251,49 +278,52 @@ class Bake:
                     geometry = _geometry(i, context.evaluated_depsgraph_get())
                     self.graph.feed(i.node, i.port, geometry, frame=f if i.animated else None)
         finally:
+            for m, shown in muted:
+                m.show_viewport = shown
             scene.frame_set(current)
         self.frames = list(range(s.frame_start, s.frame_end + 1))
         self.next = 0
+        # (element, kind, object picked or None), as the panel had them at the start
+        self.targets = [(r.element, r.kind, r.object) for r in s.results]
         # element → list of (N, 3) f64 positions in Weft's axes, one per frame
-        self.results = {r.element: [] for r in s.results}
+        self.results = {element: [] for element, _, _ in self.targets}
         # element → its triangles (cloth) or curve offsets (hair), from the first frame
         self.topology = {}
 
     def step(self):
         """Pulls the next frame; whether frames remain."""
-        s = _settings(self.context)
         f = self.frames[self.next]
-        scene = self.graph.pull_port(s.scene_node, s.scene_port, f, self.fps)
+        scene = self.graph.pull_port(*self.source, f, self.fps)
         for name, frames in self.results.items():
             frames.append(scene[name]["positions"])
             if name not in self.topology:
                 e = scene[name]
                 self.topology[name] = e.get("triangles", e.get("offsets"))
         self.next += 1
-        s.status = f"baked frame {f} ({self.next}/{len(self.frames)})"
+        self.scene.weft.status = f"baked frame {f} ({self.next}/{len(self.frames)})"
         return self.next < len(self.frames)
 
     def write(self):
-        """Writes a PC2 cache per mapped result object and points a Mesh Cache modifier at
-        it; the files written."""
-        s = _settings(self.context)
-        directory = bpy.path.abspath(s.cache_dir)
-        os.makedirs(directory, exist_ok=True)
+        """Writes a PC2 cache per result object (made when none was picked) and points a Mesh
+        Cache modifier at it; the files written."""
+        os.makedirs(self.cache_dir, exist_ok=True)
         written = []
-        for r in s.results:
-            frames = self.results.get(r.element)
+        for element, kind, obj in self.targets:
+            frames = self.results.get(element)
             if not frames:
                 continue
-            if r.object is None:
-                r.object = self._new_object(r.element, r.kind, frames[0])
-            obj = r.object
+            if obj is None:
+                obj = self._new_object(element, kind, frames[0])
+                for r in self.scene.weft.results:
+                    if r.element == element and r.object is None:
+                        r.object = obj
             if obj.type != "MESH" or len(obj.data.vertices) != len(frames[0]):
                 raise ValueError(
-                    f"'{obj.name}' cannot show '{r.element}': it needs a mesh with "
+                    f"'{obj.name}' cannot show '{element}': it needs a mesh with "
                     f"{len(frames[0])} vertices in the element's order")
             inverse = np.linalg.inv(np.array(obj.matrix_world, dtype=np.float64))
             local = [to_blender(p) @ inverse[:3, :3].T + inverse[:3, 3] for p in frames]
-            path = os.path.join(directory, f"{bpy.path.clean_name(obj.name)}.pc2")
+            path = os.path.join(self.cache_dir, f"{bpy.path.clean_name(obj.name)}.pc2")
             write_pc2(path, local, start=self.frames[0], rate=1.0)
             mod = obj.modifiers.get("Weft") or obj.modifiers.new("Weft", "MESH_CACHE")
             mod.cache_format = "PC2"
@@ -301,9 +331,8 @@ class Bake:
             mod.frame_start = self.frames[0]
             mod.interpolation = "NONE"
             written.append(path)
-        s.status = f"baked {len(self.frames)} frames into {len(written)} cache(s)"
+        self.scene.weft.status = f"baked {len(self.frames)} frames into {len(written)} cache(s)"
         return written
-
 
     def _new_object(self, element, kind, positions):
         """A mesh object to show an element no object was picked for: the cloth's triangles,
@@ -319,7 +348,7 @@ class Bake:
         mesh = bpy.data.meshes.new(f"{element} (Weft)")
         mesh.from_pydata([tuple(v) for v in p], edges, faces)
         obj = bpy.data.objects.new(f"{element} (Weft)", mesh)
-        self.context.scene.collection.objects.link(obj)
+        self.scene.collection.objects.link(obj)
         return obj
 
 
@@ -349,6 +378,12 @@ def bake(context):
     return b.results, b.write()
 
 
+def _fatal(e):
+    """Exceptions an operator must let through: the user's Ctrl-C and Blender's exit. Every
+    other one, PyO3's PanicException (a BaseException) included, is reported."""
+    return isinstance(e, (KeyboardInterrupt, SystemExit))
+
+
 def _report_error(op, context, e):
     message = str(e).strip() or type(e).__name__
     _settings(context).last_error = message
@@ -365,7 +400,9 @@ class WEFT_OT_load(bpy.types.Operator):
     def execute(self, context):
         try:
             load_graph(context)
-        except Exception as e:  # every failure is reported, none escapes into Blender
+        except BaseException as e:  # every failure is reported, none escapes into Blender
+            if _fatal(e):
+                raise
             return _report_error(self, context, e)
         self.report({"INFO"}, _settings(context).status)
         return {"FINISHED"}
@@ -383,7 +420,9 @@ class WEFT_OT_bake(bpy.types.Operator):
     def execute(self, context):
         try:
             _, written = bake(context)
-        except Exception as e:
+        except BaseException as e:
+            if _fatal(e):
+                raise
             return _report_error(self, context, e)
         self.report({"INFO"}, f"Weft: wrote {len(written)} cache(s)")
         return {"FINISHED"}
@@ -391,7 +430,9 @@ class WEFT_OT_bake(bpy.types.Operator):
     def invoke(self, context, event):
         try:
             self._bake = Bake(context)
-        except Exception as e:
+        except BaseException as e:
+            if _fatal(e):
+                raise
             return _report_error(self, context, e)
         wm = context.window_manager
         wm.progress_begin(0, len(self._bake.frames))
@@ -418,8 +459,10 @@ class WEFT_OT_bake(bpy.types.Operator):
             if more:
                 return {"RUNNING_MODAL"}
             written = self._bake.write()
-        except Exception as e:
+        except BaseException as e:
             self._finish(context)
+            if _fatal(e):
+                raise
             return _report_error(self, context, e)
         self._finish(context)
         self.report({"INFO"}, f"Weft: wrote {len(written)} cache(s)")
