@@ -450,22 +450,13 @@ pub unsafe extern "C" fn weft_graph_param_json(
             return 0;
         };
         let id = n.id.to_string_lossy();
-        let (Some(spec), Some(values)) = (h.graph.node_spec(&id), h.graph.node_params(&id)) else {
+        let Some(j) = h
+            .graph
+            .param_descriptions(&id)
+            .and_then(|mut all| (param < all.len()).then(|| all.swap_remove(param)))
+        else {
             return 0;
         };
-        let Some(p) = spec.params.get(param) else {
-            return 0;
-        };
-        let mut j = serde_json::to_value(p).unwrap_or(serde_json::Value::Null);
-        if let Some(o) = j.as_object_mut() {
-            o.insert(
-                "value".into(),
-                values
-                    .get(&p.name)
-                    .cloned()
-                    .unwrap_or(serde_json::Value::Null),
-            );
-        }
         // SAFETY: buffer contract passed through.
         unsafe { write_str(&c_string(&j.to_string()), buf, capacity) }
     })

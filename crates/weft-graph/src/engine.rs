@@ -349,6 +349,25 @@ impl Graph {
     pub fn node_params(&self, id: &str) -> Option<&Params> {
         self.ids.get(id).map(|&n| &*self.slots[n].params)
     }
+    /// The parameters of node `id` as hosts list them: each its spec (name, kind with range
+    /// or choices, default, unit, doc) as JSON with its current `value` added.
+    pub fn param_descriptions(&self, id: &str) -> Option<Vec<serde_json::Value>> {
+        let (spec, values) = (self.node_spec(id)?, self.node_params(id)?);
+        Some(
+            spec.params
+                .iter()
+                .map(|p| {
+                    let mut j = serde_json::to_value(p).unwrap_or(serde_json::Value::Null);
+                    if let Some(o) = j.as_object_mut() {
+                        let v = values.get(&p.name).cloned();
+                        o.insert("value".into(), v.unwrap_or(serde_json::Value::Null));
+                    }
+                    j
+                })
+                .collect(),
+        )
+    }
+
     /// The type of output `port` of node `id` as compiled (an output typed by its input or a
     /// parameter resolved), if both exist.
     pub fn node_output_type(&self, id: &str, port: &str) -> Option<&str> {

@@ -316,7 +316,6 @@ impl Graph {
             let spec = engine.node_spec(node).ok_or_else(|| {
                 graph_error(py, Box::new(Diagnostic::about(node, None, "no such node")))
             })?;
-            let values = engine.node_params(node).expect("the node exists");
             let inputs: Vec<(String, String)> = spec
                 .inputs
                 .iter()
@@ -336,17 +335,11 @@ impl Graph {
                     (p.name.clone(), ty.to_string())
                 })
                 .collect();
-            let params: Vec<String> = spec
-                .params
+            let params: Vec<String> = engine
+                .param_descriptions(node)
+                .expect("the node exists")
                 .iter()
-                .map(|p| {
-                    let mut j = serde_json::to_value(p).unwrap_or(serde_json::Value::Null);
-                    if let Some(o) = j.as_object_mut() {
-                        let v = values.get(&p.name).cloned();
-                        o.insert("value".into(), v.unwrap_or(serde_json::Value::Null));
-                    }
-                    j.to_string()
-                })
+                .map(|j| j.to_string())
                 .collect();
             (spec.name.clone(), spec.doc.clone(), inputs, outputs, params)
         };

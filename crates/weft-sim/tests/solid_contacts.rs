@@ -160,6 +160,22 @@ fn settings(tolerance: f64, substeps: usize) -> StepperSettings {
     }
 }
 
+/// Sheets "lower" and "upper" (`n` × `n` cells) at heights `y`, the upper offset by a third
+/// of a cell so their grids do not line up, over a box of size `box_size` whose top is at
+/// y = 0, and a collision group without self-collision.
+fn two_sheets_over_a_box(n: usize, y: (f64, f64), box_size: [f64; 3]) -> Vec<SceneElement> {
+    vec![
+        sheet("lower", n, y.0, 0.0),
+        sheet("upper", n, y.1, 0.3 / n as f64 / 3.0),
+        SceneElement::new(
+            "box",
+            ElementKind::Collider,
+            Geometry::Mesh(cuboid([0.0, -0.1, 0.0], box_size)),
+        ),
+        group(false),
+    ]
+}
+
 /// Two sheets (0.3 m, 8 × 8 cells, 1 mm thick each) dropped 2 and 4 cm onto a wider box, the
 /// upper offset by a third of a cell so their grids do not line up, one step (1/96 s) per
 /// advance for 1 s: after every step no triangle of one meets a triangle of the other (exact
@@ -169,16 +185,7 @@ fn settings(tolerance: f64, substeps: usize) -> StepperSettings {
 #[test]
 fn stacked_sheets_rest_apart_and_still() {
     let n = 8;
-    let scene = vec![
-        sheet("lower", n, 0.02, 0.0),
-        sheet("upper", n, 0.04, 0.3 / n as f64 / 3.0),
-        SceneElement::new(
-            "box",
-            ElementKind::Collider,
-            Geometry::Mesh(cuboid([0.0, -0.1, 0.0], [0.5, 0.2, 0.5])),
-        ),
-        group(false),
-    ];
+    let scene = two_sheets_over_a_box(n, (0.02, 0.04), [0.5, 0.2, 0.5]);
     let c = Arc::new(compile(&scene, &tree()).unwrap());
     let tris = global_triangles(&scene, &c);
     let mut s = SolidStepper::new(c.clone(), settings(1e-6, 1)).unwrap();
@@ -205,16 +212,7 @@ fn stacked_sheets_rest_apart_and_still() {
 #[test]
 fn sheets_folding_over_an_edge_never_intersect_on_one_and_two_threads() {
     let n = 8;
-    let scene = vec![
-        sheet("lower", n, 0.05, 0.0),
-        sheet("upper", n, 0.08, 0.3 / n as f64 / 3.0),
-        SceneElement::new(
-            "box",
-            ElementKind::Collider,
-            Geometry::Mesh(cuboid([0.0, -0.1, 0.0], [0.2, 0.2, 0.2])),
-        ),
-        group(false),
-    ];
+    let scene = two_sheets_over_a_box(n, (0.05, 0.08), [0.2, 0.2, 0.2]);
     let c = Arc::new(compile(&scene, &tree()).unwrap());
     let tris = global_triangles(&scene, &c);
     let run = |threads: usize| {

@@ -167,18 +167,19 @@ def load_graph(context):
         i = s.inputs.add()
         i.node, i.port, i.kind = node, port, ty
         i.object, i.animated = old_inputs.get((node, port), (None, True))
-    for node, name, kind, value in params:
+    for node, name, kind, in_file in params:
         w = s.params.add()
         w.node, w.param, w.kind = node, name, kind
-        kept_kind, kept = old_params.get((node, name), (kind, value))
-        value = kept if kept_kind == kind else value
+        kept_kind, value = old_params.get((node, name), (kind, in_file))
+        if kept_kind != kind:
+            value = in_file
         if kind == "float":
             w.float_value = float(value)
         elif kind == "int":
             w.int_value = int(value)
         else:
             w.bool_value = bool(value)
-        w.loaded = repr(next(v for n, p, k, v in params if (n, p) == (node, name)))
+        w.loaded = repr(in_file)
     for name, kind in results:
         r = s.results.add()
         r.element, r.kind = name, kind
