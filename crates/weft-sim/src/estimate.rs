@@ -26,7 +26,9 @@ pub fn solid_step_seconds(compiled: &Compiled, method: Method) -> f64 {
     match method {
         Method::Explicit => 0.5 * assembly,
         Method::Linearized => assembly + factor,
-        Method::Newton | Method::Static => iterations * (assembly + factor),
+        Method::Newton | Method::ProjectedNewton | Method::Static => {
+            iterations * (assembly + factor)
+        }
     }
 }
 

@@ -71,6 +71,11 @@ pub struct FrameStats {
     pub factor_seconds: f64,
     /// Seconds in triangular solves.
     pub solve_seconds: f64,
+    /// Factorizations retried with added inertia (the exact Hessian was not positive
+    /// definite), summed over steps.
+    pub inertia_shifts: usize,
+    /// Newton iterations that fell back to projected Hessians, summed over steps.
+    pub projected_iterations: usize,
     /// Wall time of the frame.
     pub seconds: f64,
     /// Contacts with colliders: `None` when the scene builds no contact machinery.
@@ -184,6 +189,8 @@ impl SolidStepper {
                 stats.assembly_seconds += s.assembly_seconds;
                 stats.factor_seconds += s.factor_seconds;
                 stats.solve_seconds += s.solve_seconds;
+                stats.inertia_shifts += s.shifted;
+                stats.projected_iterations += s.projected;
                 Ok(())
             }
             Err(StepError::System(e)) => Err(StepError::System(e)),

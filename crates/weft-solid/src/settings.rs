@@ -10,8 +10,14 @@ pub enum Method {
     Explicit,
     /// One projected Newton step from x⁰ + h v⁰ (Baraff–Witkin style linearized implicit Euler).
     Linearized,
-    /// Projected Newton iterated to tolerance: implicit Euler solved exactly.
+    /// Newton iterated to tolerance (implicit Euler solved exactly), each iteration with the
+    /// exact Hessian where it is cheap and positive definite (quadratic convergence), else
+    /// with more inertia, else projected (see `Element::eval_first`).
     Newton,
+    /// Projected Newton iterated to tolerance: every element Hessian projected to PSD at
+    /// every iteration (the same answer; kept for comparison, it converges linearly where
+    /// cloth buckles).
+    ProjectedNewton,
     /// No inertia: each step moves pinned vertices to their targets and finds the static
     /// equilibrium from where the last one was (the tolerance is ‖Δx‖∞ in metres);
     /// velocities are zero. Steps then load a structure gradually (a static solve of a
@@ -58,6 +64,12 @@ pub struct StepStats {
     pub factor_seconds: f64,
     /// Seconds in triangular solves.
     pub solve_seconds: f64,
+    /// Factorizations retried with added inertia because the exact Hessian was not
+    /// positive definite ([`Method::Newton`]).
+    pub shifted: usize,
+    /// Iterations that used the projected Hessians under [`Method::Newton`] (every retry
+    /// with inertia failed).
+    pub projected: usize,
 }
 
 impl StepStats {

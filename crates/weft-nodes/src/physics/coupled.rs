@@ -367,6 +367,7 @@ pub(super) fn solid(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeE
         method: match p.str("method")? {
             "explicit" => Method::Explicit,
             "linearized" => Method::Linearized,
+            "projected_newton" => Method::ProjectedNewton,
             _ => Method::Newton,
         },
         tolerance: p.f64("tolerance")?,

@@ -91,7 +91,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             .input("iterate", "coupled", "the coupling iterate")
             .input("exchange", "coupled_exchange", "drag and forces")
             .output("solid", "coupled_solid", "the new solid iterate")
-            .param(ParamSpec::choice("method", &["newton", "linearized", "explicit"], "newton").doc("the solid solve"))
+            .param(ParamSpec::choice("method", &["newton", "linearized", "explicit", "projected_newton"], "newton").doc("the solid solve (see solver.solid's method)"))
             .param(ParamSpec::float("tolerance", 1e-6).gt(0.0).unit("m/s").doc("Newton tolerance of the solid solve"))
             .param(ParamSpec::int("max_iterations", 50).ge(1.0).le(10_000.0).doc("Newton iteration limit of the solid solve"))
             .param(ParamSpec::choice("relaxation", &["aitken", "quasi_newton", "none"], "aitken").doc("relaxation of the solid iterate between coupling iterations (aitken: Irons-Tuck delta-squared; quasi_newton: IQN-ILS, a least-squares inverse Jacobian from the step's iterates)"))

@@ -41,6 +41,7 @@ fn settings(p: &Params, max_bytes: u64) -> Result<StepperSettings, weft_graph::P
         "explicit" => Method::Explicit,
         "linearized" => Method::Linearized,
         "static" => Method::Static,
+        "projected_newton" => Method::ProjectedNewton,
         _ => Method::Newton,
     };
     Ok(StepperSettings {
@@ -224,6 +225,7 @@ impl Step for SolidSolver {
                     "max_newton_iterations": s.max_newton_iterations, "max_residual": s.max_residual,
                     "assembly_seconds": s.assembly_seconds, "factor_seconds": s.factor_seconds,
                     "solve_seconds": s.solve_seconds, "seconds": s.seconds,
+                    "inertia_shifts": s.inertia_shifts, "projected_iterations": s.projected_iterations,
                 });
                 if let Some(c) = &s.contacts {
                     j["contacts"] = super::types::contact_stats_json(c);
@@ -244,13 +246,13 @@ impl Step for SolidSolver {
 
 pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
     r.register(
-        NodeSpec::new("solver.solid", "steps cloth and hair: implicit Euler by projected Newton (or explicit / linearized), with substeps and retries")
+        NodeSpec::new("solver.solid", "steps cloth and hair: implicit Euler by Newton (exact Hessians where positive definite, else projected; or explicit / linearized), with substeps and retries")
             .time(TimeClass::Stateful)
             .input_multi("elements", "element", "the scene's elements (cloth, hair, attachments, colliders)")
             .input("tree", "behavior_tree", "what is simulated")
             .output("scene", "scene", "the elements at this frame")
             .param(ParamSpec::int("substeps", 4).ge(1.0).le(100_000.0).doc("steps per frame"))
-            .param(ParamSpec::choice("method", &["newton", "linearized", "explicit", "static"], "newton").doc("newton: implicit Euler to tolerance; linearized: one Newton step; explicit: symplectic Euler; static: no inertia, each step finds the equilibrium under that step's loads and attachment targets (substeps load the structure gradually)"))
+            .param(ParamSpec::choice("method", &["newton", "linearized", "explicit", "static", "projected_newton"], "newton").doc("newton: implicit Euler to tolerance (exact Hessians where positive definite, else projected); projected_newton: the same answer with every element Hessian projected to PSD (slower where cloth buckles; for comparison); linearized: one Newton step; explicit: symplectic Euler; static: no inertia, each step finds the equilibrium under that step's loads and attachment targets (substeps load the structure gradually)"))
             .param(ParamSpec::float("tolerance", 1e-6).gt(0.0).unit("m/s").doc("Newton stops when a further iteration would change velocities by less (method static: positions, in m)"))
             .param(ParamSpec::int("max_iterations", 50).ge(1.0).le(10_000.0).doc("Newton iteration limit per step"))
             .param(ParamSpec::int("max_retries", 4).ge(0.0).le(16.0).doc("levels of step halving when a step fails"))

@@ -89,6 +89,14 @@ pub trait Element: Sync {
     fn energy(&self, x: &[Vector3<f64>]) -> f64;
     /// Energy, gradient and Hessian; the Hessian is projected to PSD when `project`.
     fn eval(&self, x: &[Vector3<f64>], project: bool, out: &mut Local);
+    /// Energy, gradient and the Hessian Newton tries first: the exact one where it costs no
+    /// more than its PSD surrogate (membranes, rods), else the surrogate (bending's
+    /// Gauss–Newton term, whose curvature part would cost several times the rest). It may be
+    /// indefinite: the integrator checks the assembled matrix by factorizing it and falls
+    /// back to the projected Hessians when it is not positive definite.
+    fn eval_first(&self, x: &[Vector3<f64>], out: &mut Local) {
+        self.eval(x, true, out);
+    }
 }
 
 /// Stacks the stencil's positions into one vector.
