@@ -76,6 +76,8 @@ pub struct FrameStats {
     pub inertia_shifts: usize,
     /// Newton iterations that fell back to projected Hessians, summed over steps.
     pub projected_iterations: usize,
+    /// Full Newton steps accepted after a second-order correction of rod lengths.
+    pub corrections: usize,
     /// Wall time of the frame.
     pub seconds: f64,
     /// Contacts with colliders: `None` when the scene builds no contact machinery.
@@ -191,6 +193,7 @@ impl SolidStepper {
                 stats.solve_seconds += s.solve_seconds;
                 stats.inertia_shifts += s.shifted;
                 stats.projected_iterations += s.projected;
+                stats.corrections += s.corrections;
                 Ok(())
             }
             Err(StepError::System(e)) => Err(StepError::System(e)),

@@ -70,6 +70,11 @@ pub struct StepStats {
     /// Iterations that used the projected Hessians under [`Method::Newton`] (every retry
     /// with inertia failed).
     pub projected: usize,
+    /// Full Newton steps rejected by the line search and accepted after a second-order
+    /// correction of the rods' lengths.
+    pub corrections: usize,
+    /// Gauss–Seidel sweeps those corrections took (accepted or not).
+    pub correction_sweeps: usize,
 }
 
 impl StepStats {

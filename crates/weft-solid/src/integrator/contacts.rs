@@ -13,7 +13,7 @@
 //! r_c/ρ_c‖² at H_c v = z_c is ∇E = Σ H_cᵀ r_c/h, the momentum balance with the colliders'
 //! impulses r_c [N·s], shared by the point's vertices in proportion to their weights.
 
-use super::{Integrator, Mode, NONE};
+use super::{Integrator, Mode, NONE, second_order_correction};
 use crate::contact::{residual, solve_local};
 use crate::settings::{Settings, StepError, StepStats};
 use crate::system::{SolidSystem, State};
@@ -307,6 +307,9 @@ impl Integrator {
         };
         // The last ADMM round's (primal, dual) residuals, for the error when it does not end.
         let mut last_admm = (f64::NAN, f64::NAN);
+        // Vertices of active contacts: the second-order correction leaves them where the
+        // contact solve put them (filled at the first iteration, only when there are rods).
+        let mut frozen = Vec::new();
         for it in 0..settings.max_iterations.max(1) {
             if self.should_stop() {
                 return Err(StepError::Interrupted { iteration: it });
@@ -441,6 +444,16 @@ impl Integrator {
             let xmax = x.iter().fold(0.0f64, |m, p| m.max(p.amax()));
             let mut alpha = 1.0;
             let mut trial = x.clone();
+            if it == 0 && !self.links.is_empty() {
+                frozen = vec![false; self.n];
+                for a in &active {
+                    for (&v, &w) in a.c.vertices.iter().zip(&a.c.weights) {
+                        if w != 0.0 {
+                            frozen[v as usize] = true;
+                        }
+                    }
+                }
+            }
             loop {
                 for ((t, p), &f) in trial.iter_mut().zip(&x).zip(&self.free_of) {
                     *t = if f == NONE {
@@ -453,6 +466,25 @@ impl Integrator {
                 let unresolvable = -slope * alpha <= 64.0 * f64::EPSILON * self.force_scale * xmax;
                 if phi(self, &trial) <= e0 + 1e-4 * alpha * slope || unresolvable || alpha < 1e-10 {
                     break;
+                }
+                // As in the contact-free step: a second-order correction of the rods' lengths.
+                if alpha == 1.0 && !self.links.is_empty() {
+                    stats.correction_sweeps += second_order_correction(
+                        &self.links,
+                        &mut self.link_target,
+                        &self.free_of,
+                        &frozen,
+                        &sys.mass,
+                        &x,
+                        &delta,
+                        &trial,
+                        &mut self.x_soc,
+                    );
+                    if phi(self, &self.x_soc) <= e0 + 1e-4 * slope {
+                        trial.copy_from_slice(&self.x_soc);
+                        stats.corrections += 1;
+                        break;
+                    }
                 }
                 alpha *= 0.5;
                 stats.halvings += 1;
