@@ -1,5 +1,5 @@
-//! Time stepping: implicit Euler by projected Newton, its one-step linearization, and
-//! symplectic Euler for comparison.
+//! Time stepping: implicit Euler by Newton (exact Hessians where positive definite, projected
+//! ones otherwise), its one-step linearization, and symplectic Euler for comparison.
 //!
 //! Implicit Euler is the minimizer of the incremental potential
 //! `E(x) = Σᵢ mᵢ/(2h²)‖xᵢ − x̂ᵢ‖² + Σᵢ c mᵢ/(2h)‖xᵢ − x⁰ᵢ‖² + Σₑ Eₑ(x)`,
@@ -7,11 +7,14 @@
 //! plus, for drag towards a flow u, `Σᵢ (1/2h) rᵢᵀ Dᵢ rᵢ`, `rᵢ = xᵢ − x⁰ᵢ − h uᵢ` (force −D(v − u)).
 //! Its Hessian, with element Hessians projected to PSD, is SPD whenever every free vertex has
 //! mass, so each Newton direction descends and a backtracking line search on E makes the
-//! iteration converge from any start. The sparsity pattern (3×3 blocks between vertices that
+//! iteration converge from any start. The exact Hessian converges faster (quadratically
+//! where projection drops the negative stiffness of buckling cloth): it is used whenever its
+//! Cholesky factorization succeeds, which proves it positive definite, so every direction
+//! still descends. The sparsity pattern (3×3 blocks between vertices that
 //! share an element) and the symbolic Cholesky analysis are built once per system; each
 //! iteration only refills values and refactors numerically, into buffers allocated once.
 //!
-//! Why one file of about 800 lines: it is one type, the [`Integrator`], whose pattern, slots,
+//! Why one file of about 1200 lines: it is one type, the [`Integrator`], whose pattern, slots,
 //! colouring and factor buffers are built together in `new_within` and used together by
 //! assembly and the Newton loop; splitting it would spread those invariants over files. Its
 //! settings, statistics and errors are in `settings.rs`.
