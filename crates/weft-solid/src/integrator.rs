@@ -74,7 +74,8 @@ enum Hessians {
 }
 
 /// Inertia added, as a fraction of mᵢ/h² per vertex, the first time an exact Hessian is not
-/// positive definite; it grows ×5 per retry, [`SHIFT_TRIES`] times, before the projected
+/// positive definite; each retry adds 5× the last (in all 0.01, 0.06, 0.31, 1.56),
+/// [`SHIFT_TRIES`] times, before the projected
 /// Hessians are used instead. Measured on the hanging cloth (24 frames): from 0.01, 8.8
 /// Newton iterations a step (at most 17); going straight to the projected Hessians, 9.4 (at
 /// most 49: projected steps stagnate where the cloth buckles).
@@ -126,6 +127,8 @@ pub struct Integrator {
     x_trial: Vec<Vector3<f64>>,
     /// The second-order correction's trial positions.
     x_soc: Vec<Vector3<f64>>,
+    /// Per vertex: whether the contact step's second-order correction must leave it alone.
+    frozen: Vec<bool>,
     /// Rod segments (vertex pairs) the second-order correction keeps at their predicted
     /// lengths, and those lengths.
     links: Vec<(u32, u32)>,
@@ -393,7 +396,7 @@ impl Integrator {
             .or(symbolic.solve_in_place_scratch::<f64>(1, par));
         if let Some(limit) = max_bytes {
             let need = (symbolic.len_val() as u64)
-                .saturating_add(2 * lower_row.len() as u64 + dofs as u64)
+                .saturating_add(3 * lower_row.len() as u64 + 3 * dofs as u64)
                 .saturating_mul(8)
                 .saturating_add(scratch.size_bytes() as u64)
                 .saturating_add((row_idx.len() as u64).saturating_mul(16));
@@ -457,6 +460,7 @@ impl Integrator {
             x_hat: vec![Vector3::zeros(); n],
             x_trial: vec![Vector3::zeros(); n],
             x_soc: vec![Vector3::zeros(); n],
+            frozen: vec![false; n],
             links: sys
                 .elements
                 .stretches
@@ -731,25 +735,29 @@ impl Integrator {
 
     /// Factorizes `values` (assembled with [`Hessians::First`]), adding inertia up to
     /// [`SHIFT_TRIES`] times while it is not positive definite: whether it succeeded.
-    fn factor_first(&mut self, sys: &SolidSystem, h: f64, stats: &mut StepStats) -> bool {
-        let mut ok = self.try_factor(stats);
+    /// Returns `Some(shifted)` (whether inertia was added) on success.
+    fn factor_first(&mut self, sys: &SolidSystem, h: f64, stats: &mut StepStats) -> Option<bool> {
+        if self.try_factor(stats) {
+            return Some(false);
+        }
         let mut kappa = FIRST_SHIFT;
         for _ in 0..SHIFT_TRIES {
-            if ok {
-                break;
-            }
             self.shift_inertia(sys, h, kappa);
             stats.shifted += 1;
-            ok = self.try_factor(stats);
+            if self.try_factor(stats) {
+                return Some(true);
+            }
             kappa *= 5.0;
         }
-        ok
+        None
     }
 
     /// The Newton direction with the exact (where cheap) Hessian: assembles it and factorizes
     /// it; if it is not positive definite, adds inertia (a smaller effective step, still the
-    /// exact Hessian's shape) up to [`SHIFT_TRIES`] times. Returns false when every try failed
-    /// (then `values` hold no usable matrix, `grad` is still right).
+    /// exact Hessian's shape) up to [`SHIFT_TRIES`] times. Returns `Some(shifted)` with the
+    /// direction in `dir`, or `None` when every try failed or the gradient is not finite
+    /// (then `values` hold no usable matrix: the caller assembles the projected one).
+    /// A shifted direction is shorter than Newton's: it must not end the iteration.
     fn first_direction(
         &mut self,
         sys: &SolidSystem,
@@ -757,20 +765,21 @@ impl Integrator {
         x0: &[Vector3<f64>],
         h: f64,
         stats: &mut StepStats,
-    ) -> bool {
+    ) -> Option<bool> {
         let t = Instant::now();
         self.assemble_with(sys, x, x0, Mode::Dynamic { h }, Hessians::First);
         stats.assembly_seconds += t.elapsed().as_secs_f64();
-        let ok = self.factor_first(sys, h, stats);
-        if ok {
-            for (d, g) in self.dir.iter_mut().zip(&self.grad) {
-                *d = -g;
-            }
-            let mut dir = std::mem::take(&mut self.dir);
-            self.solve_in_place(stats, &mut dir);
-            self.dir = dir;
+        if !self.grad.iter().all(|g| g.is_finite()) {
+            return None;
         }
-        ok
+        let shifted = self.factor_first(sys, h, stats)?;
+        for (d, g) in self.dir.iter_mut().zip(&self.grad) {
+            *d = -g;
+        }
+        let mut dir = std::mem::take(&mut self.dir);
+        self.solve_in_place(stats, &mut dir);
+        self.dir = dir;
+        Some(shifted)
     }
 
     /// Solves with the last factor in place (`b` ← H⁻¹ b, 3 entries per free vertex).
@@ -894,7 +903,8 @@ impl Integrator {
         Ok(stats)
     }
 
-    /// Projected Newton with backtracking line search on the mode's objective.
+    /// Newton (exact Hessians first for [`Method::Newton`] in dynamic steps, projected ones
+    /// otherwise) with backtracking line search on the mode's objective.
     fn minimize(
         &mut self,
         sys: &SolidSystem,
@@ -927,9 +937,9 @@ impl Integrator {
                 Mode::Dynamic { h } if settings.method == Method::Newton => {
                     self.first_direction(sys, x, x0, h, &mut stats)
                 }
-                _ => false,
+                _ => None,
             };
-            if !first {
+            if first.is_none() {
                 let t = Instant::now();
                 self.assemble(sys, x, x0, mode);
                 stats.assembly_seconds += t.elapsed().as_secs_f64();
@@ -953,10 +963,20 @@ impl Integrator {
                 }
                 Mode::Dynamic { .. } => 0.0,
             };
-            if !first {
+            if first.is_none() {
                 self.newton_direction(&mut stats, shift)?;
             }
-            let res = self.dir.iter().fold(0.0f64, |m, d| m.max(d.abs())) * scale;
+            let mut res = self.dir.iter().fold(0.0f64, |m, d| m.max(d.abs())) * scale;
+            // A direction computed with added inertia is shorter than Newton's: below the
+            // tolerance it proves nothing, so the projected Hessians' direction decides.
+            if first == Some(true) && res < settings.tolerance {
+                let t = Instant::now();
+                self.assemble(sys, x, x0, mode);
+                stats.assembly_seconds += t.elapsed().as_secs_f64();
+                stats.projected += 1;
+                self.newton_direction(&mut stats, shift)?;
+                res = self.dir.iter().fold(0.0f64, |m, d| m.max(d.abs())) * scale;
+            }
             if !res.is_finite() {
                 return Err(StepError::NonFinite { iteration: it });
             }
@@ -1132,7 +1152,13 @@ fn second_order_correction(
         let e = x[b] - x[a];
         let l = e.norm();
         let moved = step(free_of[b]) - step(free_of[a]);
-        *t = if l > 0.0 { l + e.dot(&moved) / l } else { l };
+        // A step that shortens the segment by most of its length is no model to restore:
+        // the target stays at a tenth of the length at least.
+        *t = if l > 0.0 {
+            (l + e.dot(&moved) / l).max(0.1 * l)
+        } else {
+            l
+        };
     }
     let inverse = |v: usize| {
         if free_of[v] == NONE || frozen.get(v).copied().unwrap_or(false) {
@@ -1166,8 +1192,8 @@ fn second_order_correction(
     SOC_SWEEPS
 }
 
-/// Evaluates one element at `x` into `local` and adds its gradient and projected Hessian into
-/// the shared arrays; `scale` receives Σ|gradient entries|.
+/// Evaluates one element at `x` into `local` and adds its gradient and its `hessians` Hessian
+/// into the shared arrays; `scale` receives Σ|gradient entries|.
 ///
 /// # Safety
 /// No other thread may write the entries this element touches while it runs (the colouring

@@ -12,7 +12,8 @@ pub enum Method {
     Linearized,
     /// Newton iterated to tolerance (implicit Euler solved exactly), each iteration with the
     /// exact Hessian where it is cheap and positive definite (quadratic convergence), else
-    /// with more inertia, else projected (see `Element::eval_first`).
+    /// with more inertia, else projected (see `Element::eval_first`). Steps with contacts
+    /// (their ADMM needs an SPD model) use projected Hessians throughout.
     Newton,
     /// Projected Newton iterated to tolerance: every element Hessian projected to PSD at
     /// every iteration (the same answer; kept for comparison, it converges linearly where

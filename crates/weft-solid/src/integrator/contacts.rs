@@ -307,9 +307,6 @@ impl Integrator {
         };
         // The last ADMM round's (primal, dual) residuals, for the error when it does not end.
         let mut last_admm = (f64::NAN, f64::NAN);
-        // Vertices of active contacts: the second-order correction leaves them where the
-        // contact solve put them (filled at the first iteration, only when there are rods).
-        let mut frozen = Vec::new();
         for it in 0..settings.max_iterations.max(1) {
             if self.should_stop() {
                 return Err(StepError::Interrupted { iteration: it });
@@ -445,11 +442,11 @@ impl Integrator {
             let mut alpha = 1.0;
             let mut trial = x.clone();
             if it == 0 && !self.links.is_empty() {
-                frozen = vec![false; self.n];
+                self.frozen.iter_mut().for_each(|f| *f = false);
                 for a in &active {
                     for (&v, &w) in a.c.vertices.iter().zip(&a.c.weights) {
                         if w != 0.0 {
-                            frozen[v as usize] = true;
+                            self.frozen[v as usize] = true;
                         }
                     }
                 }
@@ -473,7 +470,7 @@ impl Integrator {
                         &self.links,
                         &mut self.link_target,
                         &self.free_of,
-                        &frozen,
+                        &self.frozen,
                         &sys.mass,
                         &x,
                         &delta,
