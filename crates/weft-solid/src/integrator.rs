@@ -576,7 +576,7 @@ impl Integrator {
             }
             for c in 0..3 {
                 self.grad[3 * f + c] += g[c];
-                let k = self.col_ptr[3 * f + c] + 3 * self.diag_slot[f] as usize + c;
+                let k = self.diagonal_entry(f, c);
                 self.values[k] += diag;
             }
             self.force_scale += g.abs().sum();
@@ -621,12 +621,42 @@ impl Integrator {
     }
 
     fn shift_diagonal(&mut self, mu: f64) {
-        for f in 0..self.n_free {
+        self.add_to_diagonal(|_| mu);
+    }
+
+    /// Adds `mu(i)` to the three diagonal entries of every free vertex i.
+    fn add_to_diagonal(&mut self, mu: impl Fn(usize) -> f64) {
+        for i in 0..self.n {
+            let f = self.free_of[i];
+            if f == NONE {
+                continue;
+            }
+            let mu = mu(i);
             for c in 0..3 {
-                let k = self.col_ptr[3 * f + c] + 3 * self.diag_slot[f] as usize + c;
+                let k = self.diagonal_entry(f as usize, c);
                 self.values[k] += mu;
             }
         }
+    }
+
+    /// The index in `values` of DOF c's diagonal entry of free vertex f.
+    fn diagonal_entry(&self, f: usize, c: usize) -> usize {
+        self.col_ptr[3 * f + c] + 3 * self.diag_slot[f] as usize + c
+    }
+
+    /// `dir` ← −H⁻¹ `grad` with the last factor.
+    fn solve_direction(&mut self, stats: &mut StepStats) {
+        for (d, g) in self.dir.iter_mut().zip(&self.grad) {
+            *d = -g;
+        }
+        let mut dir = std::mem::take(&mut self.dir);
+        self.solve_in_place(stats, &mut dir);
+        self.dir = dir;
+    }
+
+    /// ‖dir‖∞ · `scale` (the residual the tolerance is compared with).
+    fn direction_size(&self, scale: f64) -> f64 {
+        self.dir.iter().fold(0.0f64, |m, d| m.max(d.abs())) * scale
     }
 
     /// Factorizes `values` + `shift`·I and solves for the direction `dir = −H⁻¹ grad`. If the
@@ -635,12 +665,7 @@ impl Integrator {
     /// ×100 from 1e-10 of the largest diagonal entry until it succeeds (Levenberg–Marquardt).
     fn newton_direction(&mut self, stats: &mut StepStats, shift: f64) -> Result<(), StepError> {
         self.factor(stats, shift)?;
-        for (d, g) in self.dir.iter_mut().zip(&self.grad) {
-            *d = -g;
-        }
-        let mut dir = std::mem::take(&mut self.dir);
-        self.solve_in_place(stats, &mut dir);
-        self.dir = dir;
+        self.solve_direction(stats);
         Ok(())
     }
 
@@ -719,18 +744,7 @@ impl Integrator {
 
     /// Adds `kappa` · mᵢ/h² to every free vertex's diagonal block.
     fn shift_inertia(&mut self, sys: &SolidSystem, h: f64, kappa: f64) {
-        for i in 0..self.n {
-            let f = self.free_of[i];
-            if f == NONE {
-                continue;
-            }
-            let mu = kappa * sys.mass[i] / (h * h);
-            let f = f as usize;
-            for c in 0..3 {
-                let k = self.col_ptr[3 * f + c] + 3 * self.diag_slot[f] as usize + c;
-                self.values[k] += mu;
-            }
-        }
+        self.add_to_diagonal(|i| kappa * sys.mass[i] / (h * h));
     }
 
     /// Factorizes `values` (assembled with [`Hessians::First`]), adding inertia up to
@@ -773,12 +787,7 @@ impl Integrator {
             return None;
         }
         let shifted = self.factor_first(sys, h, stats)?;
-        for (d, g) in self.dir.iter_mut().zip(&self.grad) {
-            *d = -g;
-        }
-        let mut dir = std::mem::take(&mut self.dir);
-        self.solve_in_place(stats, &mut dir);
-        self.dir = dir;
+        self.solve_direction(stats);
         Some(shifted)
     }
 
@@ -966,7 +975,7 @@ impl Integrator {
             if first.is_none() {
                 self.newton_direction(&mut stats, shift)?;
             }
-            let mut res = self.dir.iter().fold(0.0f64, |m, d| m.max(d.abs())) * scale;
+            let mut res = self.direction_size(scale);
             // A direction computed with added inertia is shorter than Newton's: below the
             // tolerance it proves nothing, so the projected Hessians' direction decides.
             if first == Some(true) && res < settings.tolerance {
@@ -975,7 +984,7 @@ impl Integrator {
                 stats.assembly_seconds += t.elapsed().as_secs_f64();
                 stats.projected += 1;
                 self.newton_direction(&mut stats, shift)?;
-                res = self.dir.iter().fold(0.0f64, |m, d| m.max(d.abs())) * scale;
+                res = self.direction_size(scale);
             }
             if !res.is_finite() {
                 return Err(StepError::NonFinite { iteration: it });
