@@ -20,6 +20,7 @@
 //! settings, statistics and errors are in `settings.rs`.
 
 mod contacts;
+mod correction;
 
 use crate::energy::Local;
 pub use crate::settings::{Method, Settings, StepError, StepStats, StopCheck};
@@ -82,11 +83,6 @@ enum Hessians {
 const FIRST_SHIFT: f64 = 0.01;
 const SHIFT_TRIES: usize = 4;
 
-/// Most Gauss–Seidel sweeps of a second-order correction. Measured on hair_swing (strands of
-/// 10 segments) with a fixed number of sweeps: 4 → 18.2 Newton iterations a step, 32 → 9.3,
-/// 64 → 5.9, 128 → 5.2 (27.7 without); stopping at 1e-3 of the first mismatch ends sooner.
-const SOC_SWEEPS: usize = 256;
-
 /// What is minimized: the incremental potential of a time step, or the static potential.
 #[derive(Clone, Copy)]
 enum Mode {
@@ -129,10 +125,8 @@ pub struct Integrator {
     x_soc: Vec<Vector3<f64>>,
     /// Per vertex: whether the contact step's second-order correction must leave it alone.
     frozen: Vec<bool>,
-    /// Rod segments (vertex pairs) the second-order correction keeps at their predicted
-    /// lengths, and those lengths.
-    links: Vec<(u32, u32)>,
-    link_target: Vec<f64>,
+    /// The rods' second-order correction (their segments and its scratch).
+    correction: correction::LengthCorrection,
     local: Local,
     /// Per element: where its blocks start in `slots`.
     slot_offset: Vec<usize>,
@@ -461,13 +455,14 @@ impl Integrator {
             x_trial: vec![Vector3::zeros(); n],
             x_soc: vec![Vector3::zeros(); n],
             frozen: vec![false; n],
-            links: sys
-                .elements
-                .stretches
-                .iter()
-                .map(|s| (s.v[0], s.v[1]))
-                .collect(),
-            link_target: vec![0.0; sys.elements.stretches.len()],
+            correction: correction::LengthCorrection::new(
+                sys.elements
+                    .stretches
+                    .iter()
+                    .map(|s| (s.v[0], s.v[1]))
+                    .collect(),
+                n,
+            ),
             local: Local::default(),
             force_scale: 0.0,
             stop: None,
@@ -1034,10 +1029,8 @@ impl Integrator {
                 // halving it converges slowly (the Maratos effect). A second-order
                 // correction restores the lengths the model predicted, then the step is
                 // tested again.
-                if alpha == 1.0 && !self.links.is_empty() {
-                    stats.correction_sweeps += second_order_correction(
-                        &self.links,
-                        &mut self.link_target,
+                if alpha == 1.0 && !self.correction.is_empty() {
+                    stats.correction_sweeps += self.correction.apply(
                         &self.free_of,
                         &[],
                         &sys.mass,
@@ -1124,81 +1117,6 @@ impl Integrator {
             ..Default::default()
         })
     }
-}
-
-/// Writes into `out` the positions `trial` (= x + the Newton step `dir`) moved so that every
-/// rod segment (a, b) of `links` has the length the Newton model predicts, l + u·(d_b − d_a)
-/// (l and u its length and direction at x): each segment's mismatch is removed along the
-/// segment, split in inverse proportion to the masses (held vertices do not move), in
-/// Gauss–Seidel sweeps until the largest mismatch is below 1e-3 of the first sweep's, or
-/// [`SOC_SWEEPS`] sweeps. Nocedal & Wright, Numerical Optimization, §15.6 (second-order
-/// correction), with this projection in place of a least-squares solve. Vertices marked in
-/// `frozen` do not move either (those of active contacts, whose positions the contact solve
-/// chose). Returns the sweeps.
-#[allow(clippy::too_many_arguments)]
-fn second_order_correction(
-    links: &[(u32, u32)],
-    targets: &mut [f64],
-    free_of: &[u32],
-    frozen: &[bool],
-    mass: &[f64],
-    x: &[Vector3<f64>],
-    dir: &[f64],
-    trial: &[Vector3<f64>],
-    out: &mut [Vector3<f64>],
-) -> usize {
-    out.copy_from_slice(trial);
-    let step = |f: u32| {
-        if f == NONE {
-            Vector3::zeros()
-        } else {
-            let f = 3 * f as usize;
-            Vector3::new(dir[f], dir[f + 1], dir[f + 2])
-        }
-    };
-    for (t, &(a, b)) in targets.iter_mut().zip(links) {
-        let (a, b) = (a as usize, b as usize);
-        let e = x[b] - x[a];
-        let l = e.norm();
-        let moved = step(free_of[b]) - step(free_of[a]);
-        // A step that shortens the segment by most of its length is no model to restore:
-        // the target stays at a tenth of the length at least.
-        *t = if l > 0.0 {
-            (l + e.dot(&moved) / l).max(0.1 * l)
-        } else {
-            l
-        };
-    }
-    let inverse = |v: usize| {
-        if free_of[v] == NONE || frozen.get(v).copied().unwrap_or(false) {
-            0.0
-        } else {
-            1.0 / mass[v]
-        }
-    };
-    let mut first = None;
-    for sweep in 1..=SOC_SWEEPS {
-        let mut worst = 0.0f64;
-        for (&(a, b), &target) in links.iter().zip(targets.iter()) {
-            let (a, b) = (a as usize, b as usize);
-            let (wa, wb) = (inverse(a), inverse(b));
-            let e = out[b] - out[a];
-            let l = e.norm();
-            if wa + wb == 0.0 || l == 0.0 {
-                continue;
-            }
-            let miss = l - target;
-            worst = worst.max(miss.abs());
-            let push = e * (miss / (l * (wa + wb)));
-            out[a] += wa * push;
-            out[b] -= wb * push;
-        }
-        let first = *first.get_or_insert(worst);
-        if worst <= 1e-3 * first {
-            return sweep;
-        }
-    }
-    SOC_SWEEPS
 }
 
 /// Evaluates one element at `x` into `local` and adds its gradient and its `hessians` Hessian

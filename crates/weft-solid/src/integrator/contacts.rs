@@ -13,7 +13,7 @@
 //! r_c/ρ_c‖² at H_c v = z_c is ∇E = Σ H_cᵀ r_c/h, the momentum balance with the colliders'
 //! impulses r_c [N·s], shared by the point's vertices in proportion to their weights.
 
-use super::{Integrator, Mode, NONE, second_order_correction};
+use super::{Integrator, Mode, NONE};
 use crate::contact::{residual, solve_local};
 use crate::settings::{Settings, StepError, StepStats};
 use crate::system::{SolidSystem, State};
@@ -441,7 +441,7 @@ impl Integrator {
             let xmax = x.iter().fold(0.0f64, |m, p| m.max(p.amax()));
             let mut alpha = 1.0;
             let mut trial = x.clone();
-            if it == 0 && !self.links.is_empty() {
+            if it == 0 && !self.correction.is_empty() {
                 self.frozen.iter_mut().for_each(|f| *f = false);
                 for a in &active {
                     for (&v, &w) in a.c.vertices.iter().zip(&a.c.weights) {
@@ -465,10 +465,8 @@ impl Integrator {
                     break;
                 }
                 // As in the contact-free step: a second-order correction of the rods' lengths.
-                if alpha == 1.0 && !self.links.is_empty() {
-                    stats.correction_sweeps += second_order_correction(
-                        &self.links,
-                        &mut self.link_target,
+                if alpha == 1.0 && !self.correction.is_empty() {
+                    stats.correction_sweeps += self.correction.apply(
                         &self.free_of,
                         &self.frozen,
                         &sys.mass,
