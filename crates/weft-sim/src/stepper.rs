@@ -78,6 +78,8 @@ pub struct FrameStats {
     pub projected_iterations: usize,
     /// Full Newton steps accepted after a second-order correction of rod lengths.
     pub corrections: usize,
+    /// Iterations the second-order corrections took (accepted or not), summed over steps.
+    pub correction_iterations: usize,
     /// Wall time of the frame.
     pub seconds: f64,
     /// Contacts with colliders: `None` when the scene builds no contact machinery.
@@ -194,6 +196,7 @@ impl SolidStepper {
                 stats.inertia_shifts += s.shifted;
                 stats.projected_iterations += s.projected;
                 stats.corrections += s.corrections;
+                stats.correction_iterations += s.correction_sweeps;
                 Ok(())
             }
             Err(StepError::System(e)) => Err(StepError::System(e)),

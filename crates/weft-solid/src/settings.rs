@@ -74,7 +74,8 @@ pub struct StepStats {
     /// Full Newton steps rejected by the line search and accepted after a second-order
     /// correction of the rods' lengths.
     pub corrections: usize,
-    /// Gauss–Seidel sweeps those corrections took (accepted or not).
+    /// Iterations those corrections took, accepted or not (tridiagonal projections along
+    /// strands, or Gauss–Seidel sweeps where segments are not chains).
     pub correction_sweeps: usize,
 }
 

@@ -226,7 +226,7 @@ impl Step for SolidSolver {
                     "assembly_seconds": s.assembly_seconds, "factor_seconds": s.factor_seconds,
                     "solve_seconds": s.solve_seconds, "seconds": s.seconds,
                     "inertia_shifts": s.inertia_shifts, "projected_iterations": s.projected_iterations,
-                    "corrections": s.corrections,
+                    "corrections": s.corrections, "correction_iterations": s.correction_iterations,
                 });
                 if let Some(c) = &s.contacts {
                     j["contacts"] = super::types::contact_stats_json(c);
