@@ -929,6 +929,10 @@ impl Integrator {
             Mode::Static => 1.0,
         };
         let mut g0 = 0.0f64;
+        // The objective at the current iterate, when the last line search computed it (the
+        // accepted trial's): the next line search starts from it instead of evaluating
+        // every element's energy again. Same function, same bits.
+        let mut e_at_x: Option<f64> = None;
         for it in 0..max_it {
             if self.should_stop() {
                 return Err(StepError::Interrupted { iteration: it });
@@ -996,12 +1000,13 @@ impl Integrator {
                 (0.0, 0.0, 0.0)
             } else {
                 (
-                    self.objective(sys, x, x0, mode),
+                    e_at_x.unwrap_or_else(|| self.objective(sys, x, x0, mode)),
                     self.grad.iter().zip(&self.dir).map(|(g, d)| g * d).sum(),
                     x.iter().fold(0.0f64, |m, p| m.max(p.amax())),
                 )
             };
             let mut alpha = 1.0;
+            e_at_x = None;
             loop {
                 for ((t, &p), &f) in self.x_trial.iter_mut().zip(x.iter()).zip(&self.free_of) {
                     *t = if f == NONE {
@@ -1015,6 +1020,7 @@ impl Integrator {
                     break;
                 }
                 let e1 = self.objective(sys, &self.x_trial, x0, mode);
+                e_at_x = Some(e1);
                 // When the predicted decrease is below the objective's floating-point
                 // resolution (≈ ε · |forces| · |positions|: terms like ½kL(l/L − 1)² are small
                 // numbers made from large ones) the comparison is noise: take the Newton step,
@@ -1043,6 +1049,7 @@ impl Integrator {
                     if e2 <= e0 + 1e-4 * slope {
                         std::mem::swap(&mut self.x_trial, &mut self.x_soc);
                         stats.corrections += 1;
+                        e_at_x = Some(e2);
                         break;
                     }
                 }
