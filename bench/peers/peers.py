@@ -13,7 +13,7 @@ Scenes (all by default):
 - square: a 1 m square, horizontal, held at two adjacent corners, falling and swinging for 2 s
   without damping (near-inextensible, soft bending); error = the largest distance, over the
   frames 0.25 s apart, of the cloth's centre of mass from a converged Weft run's (32 × 32
-  cells, 64 substeps, tolerance 1e-6: about 3 minutes, computed once and kept in
+  cells, 64 substeps of BDF2, tolerance 1e-6: about 4 minutes, computed once and kept in
   OUT/square_reference.json; converged to a few centimetres, see BENCHMARKS.md).
 
 Both solvers get the same vertices: Weft as triangles, Blender as the grid's quads (what its
@@ -267,18 +267,20 @@ class Cantilever(Settling):
 class Square:
     name, title, unit = "square", "hanging square: centre-of-mass error against wall time", "m"
     SIDE, ET, D, RHO_A, FRAMES = 1.0, 1.0e5, 1.0e-6, 0.15, 48
-    REF_N, REF_SUBSTEPS, REF_TOL = 32, 64, 1.0e-6
+    REF_N, REF_SUBSTEPS, REF_TOL, REF_INTEGRATOR = 32, 64, 1.0e-6, "bdf2"
 
     def sizes(self, quick):
         return [8, 16] if quick else [8, 16, 24, 32]
 
     def weft_settings(self, quick):
         """Its error is mostly implicit Euler's numerical damping of the swing (first order in
-        the step), so more substeps, and the linearized step (one Newton iteration a
-        substep, Blender's scheme) with many of them."""
+        the step), so more substeps, BDF2 (second order), and the linearized step (one Newton
+        iteration a substep, Blender's scheme) with many of them."""
         if quick:
-            return [{"substeps": 1}, {"substeps": 8}]
-        return [{"substeps": 1}, {"substeps": 2}, {"substeps": 4}, {"substeps": 8}, {"substeps": 16},
+            return [{"substeps": 1}, {"substeps": 1, "integrator": "bdf2"}]
+        return [{"substeps": 1}, {"substeps": 4}, {"substeps": 16},
+                {"substeps": 1, "integrator": "bdf2"}, {"substeps": 2, "integrator": "bdf2"},
+                {"substeps": 4, "integrator": "bdf2"},
                 {"substeps": 2, "method": "linearized"}, {"substeps": 4, "method": "linearized"},
                 {"substeps": 16, "method": "linearized"}, {"substeps": 64, "method": "linearized"}]
 
@@ -316,6 +318,7 @@ class Square:
 
     def reference(self, runner):
         key = {"n": self.REF_N, "substeps": self.REF_SUBSTEPS, "tolerance": self.REF_TOL,
+               "integrator": self.REF_INTEGRATOR,
                "et": self.ET, "d": self.D, "rho_a": self.RHO_A, "frames": self.FRAMES}
         path = runner.out / "square_reference.json"
         if path.exists():
@@ -323,9 +326,10 @@ class Square:
             if kept.get("key") == key:
                 return kept["com"]
         print(f"square: computing the reference ({self.REF_N} × {self.REF_N} cells, "
-              f"{self.REF_SUBSTEPS} substeps, tolerance {self.REF_TOL}); kept in {path}")
+              f"{self.REF_SUBSTEPS} substeps of {self.REF_INTEGRATOR}, tolerance {self.REF_TOL}); kept in {path}")
         value, seconds, err, _ = runner.weft(self, self.REF_N, {"substeps": self.REF_SUBSTEPS,
-                                                                 "tolerance": self.REF_TOL})
+                                                                 "tolerance": self.REF_TOL,
+                                                                 "integrator": self.REF_INTEGRATOR})
         if value is None:
             raise SystemExit(f"square: the reference run failed: {err}")
         com = {str(f): v for f, v in value.items()}

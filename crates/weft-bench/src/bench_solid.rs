@@ -79,6 +79,7 @@ pub(crate) fn one_step_a_frame() -> StepperSettings {
             max_iterations: 200,
             ..Settings::default()
         },
+        ..StepperSettings::default()
     }
 }
 

@@ -77,4 +77,9 @@ pub enum SimError {
     /// `element 'shirt' has 1024 vertices at frame 5 but had 1089 at the start`
     #[error("{0}")]
     SceneChanged(String),
+    /// A combination of settings and scene this version does not simulate.
+    ///
+    /// `integrator bdf2 does not step contacts yet: …`
+    #[error("{0}")]
+    Unsupported(String),
 }

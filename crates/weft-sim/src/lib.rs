@@ -42,4 +42,4 @@ pub use coupled::{
 pub use error::SimError;
 pub use fluid::FluidSpec;
 pub use relaxation::{Relaxation, RelaxationMethod, fluid_change, relax, velocity_change};
-pub use stepper::{FrameStats, SimState, SolidStepper, StepperSettings};
+pub use stepper::{FrameStats, Scheme, SimState, SolidStepper, StepperSettings};

@@ -423,6 +423,7 @@ fn a_step_that_cannot_converge_is_retried_then_reported_with_frame_and_substep()
             max_iterations: 2,
             ..Settings::default()
         },
+        ..StepperSettings::default()
     };
     let mut s = SolidStepper::new(c, settings).unwrap();
     let st = s.initial_state(&scene);

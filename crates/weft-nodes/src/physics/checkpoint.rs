@@ -84,7 +84,49 @@ pub(crate) fn read_sim(r: &mut Reader<'_>, template: &SimState) -> Result<SimSta
     Ok(SimState {
         solid: State { x, v },
         transforms,
+        history: None,
     })
+}
+
+/// Writes the BDF2 history of a solid state (the state one step before and that step's
+/// length), after [`write_sim`]: a flag, then positions, velocities and the step. Only
+/// `solver.solid` keeps one.
+pub(crate) fn write_history(w: &mut Writer, s: &SimState) {
+    match &s.history {
+        None => {
+            w.u64(0);
+        }
+        Some((prev, h)) => {
+            w.u64(1).vec3s(&vecs(&prev.x)).vec3s(&vecs(&prev.v)).f64(*h);
+        }
+    }
+}
+
+/// Reads what [`write_history`] wrote into `s`. A checkpoint written before BDF2 existed
+/// ends after the state: no history (its run was implicit Euler).
+pub(crate) fn read_history(r: &mut Reader<'_>, mut s: SimState) -> Result<SimState, String> {
+    if r.end().is_ok() {
+        return Ok(s);
+    }
+    s.history = match r.u64()? {
+        0 => None,
+        1 => {
+            let x = unvecs(r.vec3s()?);
+            let v = unvecs(r.vec3s()?);
+            let h = r.f64()?;
+            let n = s.solid.x.len();
+            if x.len() != n || v.len() != n || !h.is_finite() || h <= 0.0 {
+                return Err(format!(
+                    "a history of {} positions and {} velocities for {n} vertices, step {h}",
+                    x.len(),
+                    v.len()
+                ));
+            }
+            Some((State { x, v }, h))
+        }
+        k => return Err(format!("history tag {k}")),
+    };
+    Ok(s)
 }
 
 /// Writes a fluid's fields (the domain is the compiled scene's, not stored).
@@ -211,6 +253,7 @@ mod tests {
                     rot,
                 )),
             ],
+            history: None,
         };
         let mut w = Writer::new();
         write_sim(&mut w, &s);
@@ -222,6 +265,47 @@ mod tests {
         assert_eq!(w2.finish(), b);
         for cut in 0..b.len() {
             assert!(read_sim(&mut Reader::new(&b[..cut]), &s).is_err());
+        }
+    }
+
+    /// The BDF2 history round-trips bit for bit after the state; a checkpoint that ends
+    /// after the state (written before BDF2) reads as no history; a damaged one is refused.
+    #[test]
+    fn histories_round_trip_and_old_checkpoints_read_as_none() {
+        let state = |a: f64| State {
+            x: vec![nalgebra::Vector3::new(a, -0.0, 1e-300); 2],
+            v: vec![nalgebra::Vector3::new(f64::MIN_POSITIVE, 2.0, a); 2],
+        };
+        let s = SimState {
+            solid: state(0.5),
+            transforms: vec![None],
+            history: Some((state(0.25), 1.0 / 96.0)),
+        };
+        let mut w = Writer::new();
+        write_sim(&mut w, &s);
+        write_history(&mut w, &s);
+        let b = w.finish();
+        let mut r = Reader::new(&b);
+        let back = read_sim(&mut r, &s)
+            .and_then(|t| read_history(&mut r, t))
+            .unwrap();
+        r.end().unwrap();
+        assert_eq!(back, s);
+        let mut old = Writer::new();
+        write_sim(&mut old, &s);
+        let old = old.finish();
+        let mut r = Reader::new(&old);
+        let back = read_sim(&mut r, &s)
+            .and_then(|t| read_history(&mut r, t))
+            .unwrap();
+        assert_eq!(back.history, None);
+        for cut in old.len() + 1..b.len() {
+            let mut r = Reader::new(&b[..cut]);
+            assert!(
+                read_sim(&mut r, &s)
+                    .and_then(|t| read_history(&mut r, t))
+                    .is_err()
+            );
         }
     }
 }

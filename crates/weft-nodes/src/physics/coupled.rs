@@ -234,6 +234,7 @@ pub(super) fn setup(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeE
         sim: SimState {
             solid: compiled.state.clone(),
             transforms: scene.iter().map(|e| e.transform).collect(),
+            history: None,
         },
         compiled,
         fluid,
@@ -551,6 +552,7 @@ pub(super) fn update(_: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeE
         sim: SimState {
             solid: solid.state.clone(),
             transforms: step.to.clone(),
+            history: None,
         },
         fluid,
         scene: step.scene.clone(),

@@ -49,6 +49,10 @@ fn settings(p: &Params, max_bytes: u64) -> Result<StepperSettings, weft_graph::P
         max_retries: p.usize("max_retries")?,
         max_bytes: Some(max_bytes),
         contact_iterations: p.usize("contact_iterations")?.max(1),
+        scheme: match p.str("integrator")? {
+            "bdf2" => weft_sim::Scheme::Bdf2,
+            _ => weft_sim::Scheme::ImplicitEuler,
+        },
         solver: Settings {
             method,
             tolerance: p.f64("tolerance")?,
@@ -178,7 +182,9 @@ impl Step for SolidSolver {
 
     fn state_bytes(&self, state: &Value, _: &weft_graph::Registry) -> usize {
         state.get::<SolverState>().map_or(0, |s| {
-            48 * s.sim.solid.x.len() + super::types::scene_bytes(&s.scene)
+            // Positions and velocities, and BDF2's history of them when it keeps one.
+            48 * s.sim.solid.x.len() * (1 + usize::from(s.sim.history.is_some()))
+                + super::types::scene_bytes(&s.scene)
         })
     }
 
@@ -186,6 +192,7 @@ impl Step for SolidSolver {
         let s = state.get::<SolverState>()?;
         let mut w = weft_graph::codec::Writer::new();
         super::checkpoint::write_sim(&mut w, &s.sim);
+        super::checkpoint::write_history(&mut w, &s.sim);
         Some(w.finish())
     }
 
@@ -202,6 +209,7 @@ impl Step for SolidSolver {
         })?;
         let mut r = weft_graph::codec::Reader::new(bytes);
         let sim = super::checkpoint::read_sim(&mut r, &init.sim)
+            .and_then(|s| super::checkpoint::read_history(&mut r, s))
             .and_then(|s| r.end().map(|()| s))
             .map_err(|m| NodeError::Failed(format!("checkpoint: {m}")))?;
         let scene = scene_input(cx)?;
@@ -254,6 +262,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             .output("scene", "scene", "the elements at this frame")
             .param(ParamSpec::int("substeps", 4).ge(1.0).le(100_000.0).doc("steps per frame"))
             .param(ParamSpec::choice("method", &["newton", "linearized", "explicit", "static", "projected_newton"], "newton").doc("newton: implicit Euler to tolerance (exact Hessians where positive definite, else projected); projected_newton: the same answer with every element Hessian projected to PSD (slower where cloth buckles; for comparison); linearized: one Newton step; explicit: symplectic Euler; static: no inertia, each step finds the equilibrium under that step's loads and attachment targets (substeps load the structure gradually)"))
+            .param(ParamSpec::choice("integrator", &["euler", "bdf2"], "euler").doc("time integration of the implicit methods: euler: implicit Euler (first order: damps swinging motion, more the longer the step); bdf2: the second-order backward differentiation formula, still L-stable (stiff modes damped), each step solved like Euler's with 2/3 of the step from a blend of the last two states; starts with one Euler step, restarts after a split step; needs method newton or projected_newton; not with contacts yet"))
             .param(ParamSpec::float("tolerance", 1e-6).gt(0.0).unit("m/s").doc("Newton stops when a further iteration would change velocities by less (method static: positions, in m)"))
             .param(ParamSpec::int("max_iterations", 50).ge(1.0).le(10_000.0).doc("Newton iteration limit per step"))
             .param(ParamSpec::int("max_retries", 4).ge(0.0).le(16.0).doc("levels of step halving when a step fails"))
