@@ -23,8 +23,8 @@ Blender, which has no clamp, pins two columns, the second at the strip's root). 
 Blender's frame changes inside Blender, without its start-up; Weft's graph evaluation (from
 its --stats-json: the solver, and the OBJ writes where a scene reads meshes), without the
 process's start and the graph file's parse. Each process's whole wall time is in the CSV
-too. Sweeps: resolution for both; Weft's substeps, tolerance and method; Blender's quality
-(steps a frame) and membrane stiffness. Blender's stiffnesses come from the material by the formulas of
+too. Sweeps: resolution for both; Weft's substeps, tolerance, method and (on the square)
+integrator; Blender's quality (steps a frame) and membrane stiffness. Blender's stiffnesses come from the material by the formulas of
 its source (see `blender_material`), not from fitting its answer to the reference.
 
 Writes OUT/SCENE.csv and OUT/SCENE.svg (error against time, log–log) for every scene and prints

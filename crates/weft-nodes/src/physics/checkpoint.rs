@@ -91,7 +91,7 @@ pub(crate) fn read_sim(r: &mut Reader<'_>, template: &SimState) -> Result<SimSta
 /// Writes the BDF2 history of a solid state (the state one step before and that step's
 /// length), after [`write_sim`]: a flag, then positions, velocities and the step. Only
 /// `solver.solid` keeps one.
-pub(crate) fn write_history(w: &mut Writer, s: &SimState) {
+fn write_history(w: &mut Writer, s: &SimState) {
     match &s.history {
         None => {
             w.u64(0);
@@ -104,7 +104,7 @@ pub(crate) fn write_history(w: &mut Writer, s: &SimState) {
 
 /// Reads what [`write_history`] wrote into `s`. A checkpoint written before BDF2 existed
 /// ends after the state: no history (its run was implicit Euler).
-pub(crate) fn read_history(r: &mut Reader<'_>, mut s: SimState) -> Result<SimState, String> {
+fn read_history(r: &mut Reader<'_>, mut s: SimState) -> Result<SimState, String> {
     if r.end().is_ok() {
         return Ok(s);
     }
@@ -127,6 +127,17 @@ pub(crate) fn read_history(r: &mut Reader<'_>, mut s: SimState) -> Result<SimSta
         k => return Err(format!("history tag {k}")),
     };
     Ok(s)
+}
+
+/// Writes `solver.solid`'s state: the solid state, then its BDF2 history.
+pub(crate) fn write_solid(w: &mut Writer, s: &SimState) {
+    write_sim(w, s);
+    write_history(w, s);
+}
+
+/// Reads what [`write_solid`] wrote (or, from before BDF2, [`write_sim`] alone).
+pub(crate) fn read_solid(r: &mut Reader<'_>, template: &SimState) -> Result<SimState, String> {
+    read_sim(r, template).and_then(|s| read_history(r, s))
 }
 
 /// Writes a fluid's fields (the domain is the compiled scene's, not stored).
@@ -282,30 +293,19 @@ mod tests {
             history: Some((state(0.25), 1.0 / 96.0)),
         };
         let mut w = Writer::new();
-        write_sim(&mut w, &s);
-        write_history(&mut w, &s);
+        write_solid(&mut w, &s);
         let b = w.finish();
         let mut r = Reader::new(&b);
-        let back = read_sim(&mut r, &s)
-            .and_then(|t| read_history(&mut r, t))
-            .unwrap();
+        let back = read_solid(&mut r, &s).unwrap();
         r.end().unwrap();
         assert_eq!(back, s);
         let mut old = Writer::new();
         write_sim(&mut old, &s);
         let old = old.finish();
-        let mut r = Reader::new(&old);
-        let back = read_sim(&mut r, &s)
-            .and_then(|t| read_history(&mut r, t))
-            .unwrap();
+        let back = read_solid(&mut Reader::new(&old), &s).unwrap();
         assert_eq!(back.history, None);
         for cut in old.len() + 1..b.len() {
-            let mut r = Reader::new(&b[..cut]);
-            assert!(
-                read_sim(&mut r, &s)
-                    .and_then(|t| read_history(&mut r, t))
-                    .is_err()
-            );
+            assert!(read_solid(&mut Reader::new(&b[..cut]), &s).is_err());
         }
     }
 }

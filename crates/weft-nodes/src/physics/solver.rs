@@ -191,8 +191,7 @@ impl Step for SolidSolver {
     fn save_state(&self, state: &Value, _: &weft_graph::Registry) -> Option<Vec<u8>> {
         let s = state.get::<SolverState>()?;
         let mut w = weft_graph::codec::Writer::new();
-        super::checkpoint::write_sim(&mut w, &s.sim);
-        super::checkpoint::write_history(&mut w, &s.sim);
+        super::checkpoint::write_solid(&mut w, &s.sim);
         Some(w.finish())
     }
 
@@ -208,8 +207,7 @@ impl Step for SolidSolver {
             NodeError::Failed("the start state is not a solver.solid state".into())
         })?;
         let mut r = weft_graph::codec::Reader::new(bytes);
-        let sim = super::checkpoint::read_sim(&mut r, &init.sim)
-            .and_then(|s| super::checkpoint::read_history(&mut r, s))
+        let sim = super::checkpoint::read_solid(&mut r, &init.sim)
             .and_then(|s| r.end().map(|()| s))
             .map_err(|m| NodeError::Failed(format!("checkpoint: {m}")))?;
         let scene = scene_input(cx)?;
