@@ -755,11 +755,11 @@ fn closest_hair_pair(scene: &Scene, member: &str, per: usize, skip: usize) -> f6
 
 /// The hair pile example (hair falling on a shoulder-like cloth): at every frame no hair
 /// segment meets a triangle of the cloth and no two triangles of the cloth meet, by the exact
-/// test above; two hair segments never cross: they stay farther apart than a quarter of the
-/// 0.4 mm both thicknesses ask (measured: 0.21 mm at worst, from frame 9, where 20 strands
-/// land in a tuft: the ADMM stops at its 200 rounds before stiff hair meets Coulomb's law, a
-/// cost issue 16 takes on, so hair–hair contacts end up to half their thickness deep); the
-/// hair keeps the head's 1.2 mm less what the solver is [`allowed`] (measured: 1.1995 mm);
+/// test above; two hair segments keep the 0.4 mm both thicknesses ask, less what the solver
+/// is [`allowed`] (1e-3 m/s, 1/192 s steps: 1.1e-5 m; measured: 0.3992 mm at worst, from
+/// frame 9, where 20 strands land in a tuft and slide over each other: before the exact
+/// check re-linearized held edge pairs where the solve ended, they ended up to 0.19 mm
+/// deep); the hair keeps the head's 1.2 mm less what the solver is [`allowed`] (measured: 1.1995 mm);
 /// and the hair lands on the cloth: at the end some hair vertex is within 0.1 mm of the
 /// 1.2 mm hair and cloth keep (measured: 1.2000 mm), and the hair's lowest point is below the
 /// head (measured: 0.257 m, on the cloth over the box's top at 0.25 m).
@@ -797,7 +797,7 @@ fn the_hair_pile_never_crosses() {
         );
     }
     assert!(
-        hair_hair > 0.25 * 4e-4,
+        hair_hair >= 4e-4 - allowed(1e-3, 1.0 / 192.0, 4e-4),
         "closest hair segments {hair_hair} m"
     );
     let bound = 1.2e-3 - allowed(1e-3, 1.0 / 192.0, 1.2e-3);
