@@ -759,8 +759,8 @@ fn closest_hair_pair(scene: &Scene, member: &str, per: usize, skip: usize) -> f6
 /// is [`allowed`] (1e-3 m/s, 1/192 s steps: 1.1e-5 m; measured: 0.3992 mm at worst, from
 /// frame 9, where 20 strands land in a tuft and slide over each other: before the exact
 /// check re-linearized held edge pairs where the solve ended, they ended up to 0.19 mm
-/// deep); the hair keeps the head's 1.2 mm less what the solver is [`allowed`] (measured: 1.1995 mm);
-/// and the hair lands on the cloth: at the end some hair vertex is within 0.1 mm of the
+/// deep); the hair keeps the head's 1.2 mm less what the solver is [`allowed`] (measured:
+/// 1.1988 mm); and the hair lands on the cloth: at the end some hair vertex is within 0.1 mm of the
 /// 1.2 mm hair and cloth keep (measured: 1.2000 mm), and the hair's lowest point is below the
 /// head (measured: 0.257 m, on the cloth over the box's top at 0.25 m).
 #[test]

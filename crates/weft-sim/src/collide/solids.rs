@@ -31,11 +31,11 @@
 //! second contact linearized where the solve ended (closest points and normal there: the
 //! distance's tangent plane), and the step is solved again: a hair sliding millimetres over
 //! another in a step moves far from where its first contact was linearized (hair_pile: up
-//! to 0.19 mm into the 0.4 mm kept, 0.8 µm with this). Any pair whose path comes within a tenth of the distance (or half its
-//! starting clearance, if less) is **crossing**: the caller then retries with a smaller step,
-//! and at the smallest cuts the step back to the last time continuous detection proved safe.
-//! A pair that starts touching (closer than 10⁻⁶ of the distance) cannot be judged and is
-//! counted as starting inside instead.
+//! to 0.19 mm into the 0.4 mm kept, 0.8 µm with this). Any pair whose path comes within a
+//! tenth of the distance (or half its starting clearance, if less) is **crossing**: the
+//! caller then retries with a smaller step, and at the smallest cuts the step back to the
+//! last time continuous detection proved safe. A pair that starts touching (closer than
+//! 10⁻⁶ of the distance) cannot be judged and is counted as starting inside instead.
 
 use super::bvh::BoxTree;
 use super::ccd::{self, PairKind};
@@ -643,14 +643,7 @@ fn ee_contact(
     let moved = |k: u32| end(k as usize) - x0[k as usize];
     let rel = (1.0 - s) * moved(a[0]) + s * moved(a[1]) - (1.0 - t) * moved(b[0]) - t * moved(b[1]);
     let n = normal(&pa, &pb, across(&a0, &a1, &b0, &b1), &rel);
-    let cohesion = edge_cohesion(setup, pair, (a, s), (b, t), h);
-    make(
-        pair,
-        n,
-        (pa - pb).norm(),
-        cohesion,
-        &[(a[0], 1.0 - s), (a[1], s), (b[0], -(1.0 - t)), (b[1], -t)],
-    )
+    edge_make(setup, pair, (a, s), (b, t), n, (pa - pb).norm(), h)
 }
 
 /// The unit normal of the plane of two edges (zero where they are parallel).
@@ -661,20 +654,30 @@ fn across(a0: &V, a1: &V, b0: &V, b1: &V) -> V {
         .unwrap_or_else(V::zeros)
 }
 
-/// The cohesive impulse an edge–edge contact may pull with: the pair's cohesion over the
-/// smaller of the areas the two closest points stand for (interpolated along each edge).
-fn edge_cohesion(
+/// The edge–edge contact between the points at s along `a` and t along `b`, normal `n`,
+/// start distance `d`; its cohesive impulse is the pair's cohesion over the smaller of the
+/// areas the two points stand for (interpolated along each edge).
+fn edge_make(
     setup: &CollisionSetup,
     pair: &SolidPair,
     (a, s): ([u32; 2], f64),
     (b, t): ([u32; 2], f64),
+    n: V,
+    d: f64,
     h: f64,
-) -> f64 {
+) -> Contact {
     let area = |e: [u32; 2], u: f64| {
         let ar = |k: u32| setup.areas.get(k as usize).copied().unwrap_or(0.0);
         (1.0 - u) * ar(e[0]) + u * ar(e[1])
     };
-    pair.cohesion * area(a, s).min(area(b, t)) * h
+    let cohesion = pair.cohesion * area(a, s).min(area(b, t)) * h;
+    make(
+        pair,
+        n,
+        d,
+        cohesion,
+        &[(a[0], 1.0 - s), (a[1], s), (b[0], -(1.0 - t)), (b[1], -t)],
+    )
 }
 
 /// The edge–edge contact linearized at the solve's end `x1`: closest points and normal
@@ -702,14 +705,7 @@ fn ee_contact_at_end(
         across(&e0, &e1, &f0, &f1),
         &((pa - qa) - (pb - qb)),
     );
-    let cohesion = edge_cohesion(setup, pair, (a, s), (b, t), h);
-    make(
-        pair,
-        n,
-        n.dot(&(qa - qb)),
-        cohesion,
-        &[(a[0], 1.0 - s), (a[1], s), (b[0], -(1.0 - t)), (b[1], -t)],
-    )
+    edge_make(setup, pair, (a, s), (b, t), n, n.dot(&(qa - qb)), h)
 }
 
 /// A contact between two solids: its point Σ wⱼ xⱼ is the first side's closest point less
