@@ -760,9 +760,13 @@ fn closest_hair_pair(scene: &Scene, member: &str, per: usize, skip: usize) -> f6
 /// frame 9, where 20 strands land in a tuft and slide over each other: before the exact
 /// check re-linearized held edge pairs where the solve ended, they ended up to 0.19 mm
 /// deep); the hair keeps the head's 1.2 mm less what the solver is [`allowed`] (measured:
-/// 1.1988 mm); and the hair lands on the cloth: at the end some hair vertex is within 0.1 mm of the
-/// 1.2 mm hair and cloth keep (measured: 1.2000 mm), and the hair's lowest point is below the
-/// head (measured: 0.257 m, on the cloth over the box's top at 0.25 m).
+/// 1.1988 mm); and the hair lands on the cloth: in the last quarter second (frames 19–24) some
+/// hair vertex comes within 0.1 mm of the 1.2 mm hair and cloth keep (measured: 1.1993 mm),
+/// and the hair's lowest point is below the head (measured: 0.259 m, on the cloth over the
+/// box's top at 0.25 m). Not at one frame: the pile still settles at 1 s and its strands
+/// spring off the draping cloth and land again, in the run converged to 1e-5 m/s as well
+/// (the closest hair vertex 8.4 mm off the cloth at frame 14, 1.29 mm at frame 23, 1.20 mm
+/// at frames 19–22 and 24).
 #[test]
 fn the_hair_pile_never_crosses() {
     let mut g = example_scene("hair_pile.json", "solve.scene");
@@ -790,7 +794,9 @@ fn the_hair_pile_never_crosses() {
         }
         hair_hair = hair_hair.min(closest_hair_pair(scene, "hair", 9, 2));
         head = head.min(closest_segment_to_mesh(scene, "hair", 9, 2, "head"));
-        on_cloth = closest_to_mesh(scene, "hair", 9, 2, "cloth");
+        if f >= 19 {
+            on_cloth = on_cloth.min(closest_to_mesh(scene, "hair", 9, 2, "cloth"));
+        }
         lowest = p.iter().map(|x| x[1]).fold(f64::INFINITY, f64::min);
         println!(
             "frame {f}: hair–hair {hair_hair:e}, head {head:e}, cloth {on_cloth:e}, lowest {lowest}"
@@ -804,7 +810,7 @@ fn the_hair_pile_never_crosses() {
     assert!(head >= bound, "closest to the head {head} m");
     assert!(
         on_cloth < 1.2e-3 + 1e-4,
-        "the hair never reached the cloth: {on_cloth} m"
+        "the hair is not on the cloth in frames 19–24: {on_cloth} m"
     );
     assert!(lowest < 0.38, "the hair's lowest point is at {lowest} m");
 }

@@ -280,6 +280,8 @@ impl Integrator {
         let mut rho_hat = vec![0.0; active.len()];
         let mut sigma = 1.0;
         let mut rho = vec![0.0; active.len()];
+        // Per contact: left out of this Newton iteration's augmented terms (see below).
+        let mut free = vec![false; active.len()];
         let mut z = vec![Vector3::zeros(); active.len()];
         let mut r: Vec<Vector3<f64>> = index
             .iter()
@@ -333,9 +335,26 @@ impl Integrator {
                     z[k] = u;
                 }
             }
+            // A contact with no impulse whose point separates at the iterate (or keeps its gap)
+            // is left out of the augmented terms: its ρ/2‖v − v_want‖² would only pull the
+            // point towards its last velocity, a proximal term that makes the whole Newton
+            // iteration crawl at the rate ρ/(ρ + λ) of the softest mode it touches
+            // (measured on hair_on_head: residuals falling 0.6 % an iteration, steps ending
+            // at the iteration limit). It joins back, with a refactorization, the moment a
+            // primal step would move it into its collider. With cohesion the take-off
+            // impulse is not zero: those contacts always stay in.
             for (k, a) in active.iter().enumerate() {
-                rho[k] = sigma * rho_hat[k];
-                self.add_contact_blocks(a, rho[k] / (h * h), &identity);
+                let c = a.c;
+                let mut u = c.frame * (c.point_velocity(&x, &x0, h) - c.velocity);
+                u[0] += c.gap / h;
+                free[k] = c.cohesion == 0.0 && r[k] == Vector3::zeros() && u[0] > 0.0;
+                rho[k] = if free[k] { 0.0 } else { sigma * rho_hat[k] };
+                if free[k] {
+                    z[k] = u;
+                    z[k][0] -= c.gap / h;
+                } else {
+                    self.add_contact_blocks(a, rho[k] / (h * h), &identity);
+                }
                 let dm = a.c.damping * a.mass / h;
                 if dm > 0.0 {
                     // d m/h · n nᵀ ⊗ w wᵀ on the point's blocks (their full 3×3 are stored).
@@ -360,7 +379,12 @@ impl Integrator {
                 }
                 for (k, a) in active.iter().enumerate() {
                     let v = vel[k];
-                    want[k] = a.c.velocity + a.c.frame.transpose() * (z[k] + r[k] / rho[k]);
+                    // A free contact pulls nowhere (its ρ is zero; r/ρ would be 0/0).
+                    want[k] = if free[k] {
+                        v
+                    } else {
+                        a.c.velocity + a.c.frame.transpose() * (z[k] + r[k] / rho[k])
+                    };
                     let g = rho[k] / h * (v - want[k]) + damping_force(a, v);
                     for &(f, w) in a.free() {
                         for aa in 0..3 {
@@ -370,6 +394,7 @@ impl Integrator {
                 }
                 self.solve_in_place(&mut stats, &mut delta);
                 let (mut primal, mut dual) = (0.0f64, 0.0f64);
+                let mut joined = false;
                 for (k, a) in active.iter().enumerate() {
                     let c = a.c;
                     let mut moved = Vector3::zeros();
@@ -377,6 +402,24 @@ impl Integrator {
                         moved += w * Vector3::new(delta[3 * f], delta[3 * f + 1], delta[3 * f + 2]);
                     }
                     let hv = c.frame * (vel[k] + moved / h - c.velocity);
+                    if free[k] {
+                        if hv[0] + c.gap / h >= 0.0 {
+                            // Still taking off: u = hv, no impulse, nothing to split.
+                            dual = dual.max((hv - z[k]).amax());
+                            z[k] = hv;
+                            continue;
+                        }
+                        // The step would enter the collider: the contact joins the split
+                        // from here, starting from the admissible part of hv.
+                        free[k] = false;
+                        joined = true;
+                        rho[k] = sigma * rho_hat[k];
+                        self.add_contact_blocks(a, rho[k] / (h * h), &identity);
+                        z[k] = hv;
+                        z[k][0] = z[k][0].max(-c.gap / h);
+                        primal = primal.max((hv - z[k]).amax());
+                        continue;
+                    }
                     let mut w = hv - r[k] / rho[k];
                     // u_N ≥ −gap/h: the same law for w shifted by the gap.
                     w[0] += c.gap / h;
@@ -389,6 +432,11 @@ impl Integrator {
                     r[k] = Vector3::from(rn);
                 }
                 last_admm = (primal, dual);
+                if joined {
+                    cstats.refactorizations += 1;
+                    self.factor(&mut stats, 0.0)?;
+                    continue;
+                }
                 if primal < settings.tolerance && dual < settings.tolerance {
                     admm_converged = true;
                     break;
@@ -406,6 +454,9 @@ impl Integrator {
                     let next = (sigma * factor).clamp(1e-8, 1e8);
                     if next != sigma {
                         for (k, a) in active.iter().enumerate() {
+                            if free[k] {
+                                continue;
+                            }
                             let change = (next - sigma) * rho_hat[k];
                             self.add_contact_blocks(a, change / (h * h), &identity);
                             rho[k] = next * rho_hat[k];
@@ -515,7 +566,9 @@ impl Integrator {
             let mut u = c.frame * (c.point_velocity(&x, &x0, h) - c.velocity);
             u[0] += c.gap / h;
             let res = residual(u.into(), r[k].into(), c.friction, c.cohesion);
-            cstats.max_residual = cstats.max_residual.max(res / rho[k].max(f64::MIN_POSITIVE));
+            // Scaled by the contact's weight (a free contact's ρ is zero this iteration).
+            let weight = (sigma * rho_hat[k]).max(f64::MIN_POSITIVE);
+            cstats.max_residual = cstats.max_residual.max(res / weight);
         }
         cstats.impulses = vec![[0.0; 3]; contacts.len()];
         for (&k, rk) in index.iter().zip(&r) {
