@@ -85,6 +85,11 @@ impl Contact {
         }
         v / h
     }
+
+    /// The point's velocity relative to the contact's, in its frame (normal first).
+    fn relative_velocity(&self, x: &[Vector3<f64>], x0: &[Vector3<f64>], h: f64) -> Vector3<f64> {
+        self.frame * (self.point_velocity(x, x0, h) - self.velocity)
+    }
 }
 
 /// A contact as the ADMM sees it: its moving vertices and where their blocks are.
@@ -332,7 +337,7 @@ impl Integrator {
                     rho_hat[k] = h * h / compliance;
                     // z starts at the relative velocity of the prediction, made admissible
                     // (u_N ≥ −gap/h), so the first primal step is not pulled to rest.
-                    let mut u = a.c.frame * (a.c.point_velocity(&x, &x0, h) - a.c.velocity);
+                    let mut u = a.c.relative_velocity(&x, &x0, h);
                     u[0] = u[0].max(-a.c.gap / h);
                     z[k] = u;
                 }
@@ -347,11 +352,11 @@ impl Integrator {
             // in until the step ends: freed and rejoined at every other iteration, a contact
             // made Newton cycle (measured: the coupled hair_underwater at frame 96 when the
             // triangular solves' rounding changed, a period of six iterations between 5.7e-4
-            // and 6.4e-3 m/s until the iteration limit). With cohesion the take-off impulse is not zero: those contacts always
-            // stay in.
+            // and 6.4e-3 m/s until the iteration limit). With cohesion the take-off impulse
+            // is not zero: those contacts always stay in.
             for (k, a) in active.iter().enumerate() {
                 let c = a.c;
-                let mut u = c.frame * (c.point_velocity(&x, &x0, h) - c.velocity);
+                let mut u = c.relative_velocity(&x, &x0, h);
                 u[0] += c.gap / h;
                 free[k] =
                     rejoins[k] < 2 && c.cohesion == 0.0 && r[k] == Vector3::zeros() && u[0] > 0.0;
@@ -571,7 +576,7 @@ impl Integrator {
         }
         for (k, a) in active.iter().enumerate() {
             let c = a.c;
-            let mut u = c.frame * (c.point_velocity(&x, &x0, h) - c.velocity);
+            let mut u = c.relative_velocity(&x, &x0, h);
             u[0] += c.gap / h;
             let res = residual(u.into(), r[k].into(), c.friction, c.cohesion);
             // Scaled by the contact's weight (a free contact's ρ is zero this iteration).
