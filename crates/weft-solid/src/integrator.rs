@@ -123,8 +123,6 @@ pub struct Integrator {
     x_trial: Vec<Vector3<f64>>,
     /// The second-order correction's trial positions.
     x_soc: Vec<Vector3<f64>>,
-    /// Per vertex: whether the contact step's second-order correction must leave it alone.
-    frozen: Vec<bool>,
     /// The rods' second-order correction (their segments and its scratch).
     correction: correction::LengthCorrection,
     local: Local,
@@ -454,7 +452,6 @@ impl Integrator {
             x_hat: vec![Vector3::zeros(); n],
             x_trial: vec![Vector3::zeros(); n],
             x_soc: vec![Vector3::zeros(); n],
-            frozen: vec![false; n],
             correction: correction::LengthCorrection::new(
                 sys.elements
                     .stretches
@@ -1083,7 +1080,6 @@ impl Integrator {
                 if alpha == 1.0 && !self.correction.is_empty() {
                     stats.correction_sweeps += self.correction.apply(
                         &self.free_of,
-                        &[],
                         &sys.mass,
                         x,
                         &self.dir,

@@ -505,16 +505,6 @@ impl Integrator {
             let xmax = x.iter().fold(0.0f64, |m, p| m.max(p.amax()));
             let mut alpha = 1.0;
             let mut trial = x.clone();
-            if it == 0 && !self.correction.is_empty() {
-                self.frozen.iter_mut().for_each(|f| *f = false);
-                for a in &active {
-                    for (&v, &w) in a.c.vertices.iter().zip(&a.c.weights) {
-                        if w != 0.0 {
-                            self.frozen[v as usize] = true;
-                        }
-                    }
-                }
-            }
             loop {
                 for ((t, p), &f) in trial.iter_mut().zip(&x).zip(&self.free_of) {
                     *t = if f == NONE {
@@ -529,10 +519,14 @@ impl Integrator {
                     break;
                 }
                 // As in the contact-free step: a second-order correction of the rods' lengths.
+                // It moves contact vertices too (by O(d²/L)): the next iteration's contact
+                // solve puts them back where the law wants them, and the step that ends a
+                // Newton loop is below the tolerance, so its correction is negligible. Holding
+                // them (as before) left the segments between two contacts uncorrected, and
+                // their full steps were halved: hair_on_head 13.3 → 7.7 iterations a step.
                 if alpha == 1.0 && !self.correction.is_empty() {
                     stats.correction_sweeps += self.correction.apply(
                         &self.free_of,
-                        &self.frozen,
                         &sys.mass,
                         &x,
                         &delta,

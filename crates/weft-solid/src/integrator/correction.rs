@@ -75,13 +75,10 @@ impl LengthCorrection {
     /// Writes into `out` the positions `trial` (= x + the Newton step `dir`) moved so that
     /// every segment has the length the Newton model predicts, l + u·(d_b − d_a) (l and u
     /// its length and direction at x; at least a tenth of l). Held vertices (no free index)
-    /// and those marked in `frozen` (the contact step's active contacts, whose positions its
-    /// solve chose) do not move. Returns the iterations (projections or sweeps).
-    #[allow(clippy::too_many_arguments)]
+    /// do not move. Returns the iterations (projections or sweeps).
     pub(super) fn apply(
         &mut self,
         free_of: &[u32],
-        frozen: &[bool],
         mass: &[f64],
         x: &[Vector3<f64>],
         dir: &[f64],
@@ -110,7 +107,7 @@ impl LengthCorrection {
             };
         }
         let inverse = |v: usize| {
-            if free_of[v] == NONE || frozen.get(v).copied().unwrap_or(false) {
+            if free_of[v] == NONE {
                 0.0
             } else {
                 1.0 / mass[v]
@@ -271,7 +268,7 @@ mod tests {
         let mut c = LengthCorrection::new(links.clone(), n + 1);
         assert!(c.chains);
         let mut out = vec![Vector3::zeros(); n + 1];
-        let k = c.apply(&free_of, &[], &mass, &x, &dir, &trial, &mut out);
+        let k = c.apply(&free_of, &mass, &x, &dir, &trial, &mut out);
         // The model predicts the rest length (the step is perpendicular to every segment).
         let first = (trial[n] - trial[n - 1]).norm() - 0.01;
         let worst = links
@@ -288,7 +285,7 @@ mod tests {
         // The Gauss–Seidel sweeps on the same strand, for the record of what was replaced.
         let mut gs = LengthCorrection::new(links, n + 1);
         gs.chains = false;
-        let sweeps = gs.apply(&free_of, &[], &mass, &x, &dir, &trial, &mut out);
+        let sweeps = gs.apply(&free_of, &mass, &x, &dir, &trial, &mut out);
         assert!(
             sweeps > 10 * k.max(1),
             "{sweeps} sweeps against {k} projections"
@@ -296,28 +293,25 @@ mod tests {
     }
 
     /// Segments that do not form chains (a vertex shared by non-consecutive segments: a
-    /// star) keep the Gauss–Seidel sweeps, and frozen vertices stay where the trial put them.
+    /// star) keep the Gauss–Seidel sweeps, and held vertices stay where they are.
     #[test]
-    fn a_star_falls_back_to_sweeps_and_frozen_vertices_stay() {
+    fn a_star_falls_back_to_sweeps_and_held_vertices_stay() {
         let x = vec![
             Vector3::zeros(),
             Vector3::new(0.01, 0.0, 0.0),
             Vector3::new(0.0, 0.01, 0.0),
             Vector3::new(0.0, 0.0, 0.01),
         ];
-        let free_of = vec![0, 1, 2, 3];
+        let free_of = vec![0, 1, 2, NONE];
         let mass = vec![1e-4; 4];
         let links = vec![(0, 1), (0, 2), (0, 3)];
         let mut c = LengthCorrection::new(links.clone(), 4);
         assert!(!c.chains);
-        let dir = vec![
-            0.0, 0.0, 0.0, 0.0, 0.004, 0.0, 0.0, 0.0, 0.004, 0.004, 0.0, 0.0,
-        ];
+        let dir = vec![0.0, 0.0, 0.0, 0.0, 0.004, 0.0, 0.0, 0.0, 0.004];
         let trial = trial_of(&x, &free_of, &dir);
-        let frozen = vec![false, false, false, true];
         let mut out = vec![Vector3::zeros(); 4];
-        c.apply(&free_of, &frozen, &mass, &x, &dir, &trial, &mut out);
-        assert_eq!(out[3], trial[3]);
+        c.apply(&free_of, &mass, &x, &dir, &trial, &mut out);
+        assert_eq!(out[3], x[3]);
         for &(a, b) in &links {
             let l = (out[b as usize] - out[a as usize]).norm();
             assert!((l - 0.01).abs() < 1e-3 * 0.004, "segment ({a}, {b}): {l}");
