@@ -3,7 +3,7 @@
 //! exactly, and solve again from the start with the contacts the check added.
 
 use super::solids::Solids;
-use super::{Detector, MAX_ROUNDS};
+use super::{Detector, MAX_ROUNDS, MAX_SEGMENT_ROUNDS};
 use crate::build::Compiled;
 use crate::error::SimError;
 use nalgebra::Vector3;
@@ -99,7 +99,8 @@ impl Contacts {
     /// fractions `s0` and `s1` of the frame, held vertices at `targets`, Newton from `guess`
     /// when given: contacts detected from the start, then the exact check of every path after
     /// each solve adds the contacts it missed and the step is solved again from the start (at
-    /// most `MAX_ROUNDS` solves; the last one's penetration is reported). If primitives of the
+    /// most `MAX_ROUNDS` solves, `MAX_SEGMENT_ROUNDS` while only hair segments get contacts;
+    /// the last one's penetration is reported). If primitives of the
     /// solids still pass through each other, the step fails with
     /// [`StepError::Intersecting`] so that the caller retries it smaller, unless `last_try`:
     /// then the free vertices are cut back to the last time continuous detection proved safe.
@@ -153,7 +154,7 @@ impl Contacts {
             cs.admm_seconds += contact.admm_seconds;
             cs.pattern_rebuilds += usize::from(contact.pattern_rebuilt);
             let t = Instant::now();
-            let (mut added, mut penetration) = self.detector.check(
+            let checked = self.detector.check(
                 setup,
                 &c.ranges,
                 &sys.pinned,
@@ -162,6 +163,7 @@ impl Contacts {
                 (s0, s1, h),
                 &mut self.contacts,
             );
+            let (mut added, mut penetration) = (checked.added, checked.deepest);
             let mut crossing = (0, 1.0);
             if let Some(solids) = &mut self.solids {
                 let k = solids.check(setup, &sys.pinned, &st.x, &trial.x, h, &mut self.contacts);
@@ -178,7 +180,13 @@ impl Contacts {
                 cs.ccd_seconds += times.ccd;
             }
             round += 1;
-            if added == 0 || round == MAX_ROUNDS {
+            // Past MAX_ROUNDS only while hair segments still get contacts (see
+            // MAX_SEGMENT_ROUNDS), and only for them.
+            let more = round < MAX_ROUNDS
+                || (round < MAX_SEGMENT_ROUNDS
+                    && checked.segments > 0
+                    && checked.segments == added);
+            if added == 0 || !more {
                 if crossing.0 > 0 {
                     if !last_try {
                         cs.crossing_retries += 1;
