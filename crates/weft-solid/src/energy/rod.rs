@@ -153,45 +153,40 @@ impl Element for RodBend {
                 [0.0, 2.0 / r6],
             ];
             let c = [[r2, -1.0 / r2], [0.0, 3.0 / r6]];
-            let mut m = SMatrix::<f64, 6, 6>::zeros();
-            for i in 0..2 {
-                for j in 0..2 {
-                    for r in 0..3 {
-                        for cc in 0..3 {
-                            let mut v = 0.0;
-                            for p in 0..2 {
-                                for q in 0..2 {
-                                    v += c[i][p] * c[j][q] * he[(3 * p + r, 3 * q + cc)];
-                                }
-                            }
-                            m[(3 * i + r, 3 * j + cc)] = v;
-                        }
-                    }
-                }
-            }
+            let mut m: SMatrix<f64, 6, 6> = per_coordinate(&c, &he);
             crate::spd::project_psd(&mut m);
             (basis, m)
         } else {
             (B, he)
         };
-        let mut h = SMatrix::<f64, 9, 9>::zeros();
-        for a in 0..3 {
-            for b in 0..3 {
-                for r in 0..3 {
-                    for c in 0..3 {
-                        let mut v = 0.0;
-                        for p in 0..2 {
-                            for q in 0..2 {
-                                v += map[a][p] * map[b][q] * inner[(3 * p + r, 3 * q + c)];
-                            }
+        let h: SMatrix<f64, 9, 9> = per_coordinate(&map, &inner);
+        out.set::<9>(e, &g, &h);
+    }
+}
+
+/// M Ĥ Mᵀ for M = `map` ⊗ I₃ (`map` is A × 2, N = 3A): a 6×6 matrix over two edges (or
+/// two basis motions) mapped to N×N, each coordinate alike.
+fn per_coordinate<const A: usize, const N: usize>(
+    map: &[[f64; 2]; A],
+    inner: &SMatrix<f64, 6, 6>,
+) -> SMatrix<f64, N, N> {
+    let mut out = SMatrix::<f64, N, N>::zeros();
+    for a in 0..A {
+        for b in 0..A {
+            for r in 0..3 {
+                for c in 0..3 {
+                    let mut v = 0.0;
+                    for p in 0..2 {
+                        for q in 0..2 {
+                            v += map[a][p] * map[b][q] * inner[(3 * p + r, 3 * q + c)];
                         }
-                        h[(3 * a + r, 3 * b + c)] = v;
                     }
+                    out[(3 * a + r, 3 * b + c)] = v;
                 }
             }
         }
-        out.set::<9>(e, &g, &h);
     }
+    out
 }
 
 /// [`RodBend`]'s energy as a function of its two edges.
