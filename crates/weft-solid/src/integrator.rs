@@ -21,6 +21,7 @@
 
 mod contacts;
 mod correction;
+mod solve;
 
 use crate::energy::Local;
 pub use crate::settings::{Method, Settings, StepError, StepStats, StopCheck};
@@ -30,7 +31,8 @@ use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::linalg::amd;
 use faer::sparse::linalg::cholesky::{
-    CholeskySymbolicParams, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
+    CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
+    factorize_symbolic_cholesky,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
@@ -116,6 +118,10 @@ pub struct Integrator {
     perm: Vec<usize>,
     /// A right-hand side in the factor's order.
     permuted: Vec<f64>,
+    /// Scratch of the own one-right-hand-side solve (`integrator/solve.rs`), as long as the
+    /// longest pattern below a supernode's diagonal block; `None` when the factor has wide
+    /// supernodes and faer's solve is used.
+    narrow_tmp: Option<Vec<f64>>,
     mem: MemBuffer,
     grad: Vec<f64>,
     dir: Vec<f64>,
@@ -429,6 +435,10 @@ impl Integrator {
             colors.push(serial);
         }
         let l_values = vec![0.0; symbolic.len_val()];
+        let narrow_tmp = match symbolic.raw() {
+            SymbolicCholeskyRaw::Supernodal(sn) => solve::narrow(sn).map(|m| vec![0.0; m]),
+            SymbolicCholeskyRaw::Simplicial(_) => None,
+        };
         Ok(Integrator {
             n,
             free_of,
@@ -446,6 +456,7 @@ impl Integrator {
             lower_src,
             perm: fwd,
             permuted: vec![0.0; dofs],
+            narrow_tmp,
             mem: MemBuffer::new(scratch),
             grad: vec![0.0; dofs],
             dir: vec![0.0; dofs],
@@ -786,13 +797,22 @@ impl Integrator {
     /// Solves with the last factor in place (`b` ← H⁻¹ b, 3 entries per free vertex).
     fn solve_in_place(&mut self, stats: &mut StepStats, b: &mut [f64]) {
         let t = Instant::now();
-        let llt = faer::sparse::linalg::cholesky::LltRef::new(&self.symbolic, &self.l_values);
         let dofs = 3 * self.n_free;
         for (p, &i) in self.permuted.iter_mut().zip(&self.perm) {
             *p = b[i];
         }
-        let rhs = MatMut::from_column_major_slice_mut(&mut self.permuted, dofs, 1);
-        llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut self.mem));
+        match (self.symbolic.raw(), self.narrow_tmp.as_mut()) {
+            // Hair-like factors (every supernode narrow): see `solve.rs` for why not faer's.
+            (SymbolicCholeskyRaw::Supernodal(sn), Some(tmp)) => {
+                solve::supernodal_solve(sn, &self.l_values, &mut self.permuted, tmp);
+            }
+            _ => {
+                let llt =
+                    faer::sparse::linalg::cholesky::LltRef::new(&self.symbolic, &self.l_values);
+                let rhs = MatMut::from_column_major_slice_mut(&mut self.permuted, dofs, 1);
+                llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut self.mem));
+            }
+        }
         for (&p, &i) in self.permuted.iter().zip(&self.perm) {
             b[i] = p;
         }
