@@ -80,9 +80,10 @@ pub struct FrameStats {
     pub steps: usize,
     /// Substeps that were split because a step failed.
     pub retries: usize,
-    /// Newton iterations, summed over steps.
+    /// Newton iterations, summed over steps: a contact step's rounds solved again after its
+    /// exact check included (not the substeps that failed and were retried as halves).
     pub newton_iterations: usize,
-    /// Most Newton iterations in one step.
+    /// Most Newton iterations in one step (its rounds together).
     pub max_newton_iterations: usize,
     /// Largest final residual of a step [m/s].
     pub max_residual: f64,

@@ -272,8 +272,20 @@ fn a_thrown_sheet_never_tunnels_through_another() {
         *v = V::new(0.0, -10.0, 0.0);
     }
     let mut nearest = f64::INFINITY;
+    let mut resolved = 0;
     for f in 1..=12 {
-        let (next, _) = s.advance(&state, &scene, f, 1.0 / 24.0).unwrap();
+        let (next, stats) = s.advance(&state, &scene, f, 1.0 / 24.0).unwrap();
+        // A step's statistics count every solve of it, the rounds solved again after the
+        // exact check included: each takes at least one Newton iteration.
+        let cs = stats.contacts.as_ref().unwrap();
+        assert!(
+            stats.newton_iterations >= stats.steps + cs.resolves,
+            "frame {f}: {} Newton iterations for {} steps and {} solved again",
+            stats.newton_iterations,
+            stats.steps,
+            cs.resolves
+        );
+        resolved += cs.resolves;
         assert_eq!(intersecting_pairs(&next.solid.x, &tris), 0, "frame {f}");
         let below = next.solid.x[upper.clone()].iter().any(|p| p.y < 0.0);
         assert!(!below, "frame {f}: the upper sheet went through");
@@ -282,6 +294,10 @@ fn a_thrown_sheet_never_tunnels_through_another() {
     }
     eprintln!("thrown: nearest {nearest} m");
     assert!(nearest >= 2e-3 - 4e-8 - 2e-6, "came {nearest} m close");
+    assert!(
+        resolved > 0,
+        "no round was solved again: the count above proves nothing"
+    );
 }
 
 /// The smallest distance between a segment of strand `a` and one of strand `b` (global

@@ -80,6 +80,21 @@ pub struct StepStats {
 }
 
 impl StepStats {
+    /// Adds the work of an earlier solve of the same step that was thrown away (a contact
+    /// step solved again after its exact check added contacts): its iterations, halvings,
+    /// seconds and tries count; its residuals and convergence do not.
+    pub fn absorb(&mut self, earlier: &StepStats) {
+        self.iterations += earlier.iterations;
+        self.halvings += earlier.halvings;
+        self.assembly_seconds += earlier.assembly_seconds;
+        self.factor_seconds += earlier.factor_seconds;
+        self.solve_seconds += earlier.solve_seconds;
+        self.shifted += earlier.shifted;
+        self.projected += earlier.projected;
+        self.corrections += earlier.corrections;
+        self.correction_sweeps += earlier.correction_sweeps;
+    }
+
     /// The error of a step that ran out of iterations with these statistics.
     pub(crate) fn not_converged(&self, tolerance: f64) -> StepError {
         StepError::NotConverged {

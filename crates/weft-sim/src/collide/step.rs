@@ -135,6 +135,8 @@ impl Contacts {
         }
         cs.detection_seconds += t.elapsed().as_secs_f64();
         let mut round = 0;
+        // The work of the rounds solved again, counted into the step's statistics.
+        let mut discarded = StepStats::default();
         loop {
             let mut trial = st.clone();
             let (step, contact) = integrator.step_contacts(
@@ -209,8 +211,11 @@ impl Contacts {
                 cs.max_penetration = cs.max_penetration.max(penetration);
                 cs.max_residual = cs.max_residual.max(contact.max_residual);
                 *st = trial;
+                let mut step = step;
+                step.absorb(&discarded);
                 return Ok(step);
             }
+            discarded.absorb(&step);
             cs.resolves += 1;
         }
     }

@@ -320,7 +320,9 @@ impl Integrator {
             if self.should_stop() {
                 return Err(StepError::Interrupted { iteration: it });
             }
+            let t = std::time::Instant::now();
             self.assemble(sys, &x, &x0, Mode::Dynamic { h });
+            stats.assembly_seconds += t.elapsed().as_secs_f64();
             if it == 0 {
                 for (k, a) in active.iter().enumerate() {
                     let n = a.c.frame.row(0).transpose();
