@@ -100,8 +100,8 @@ impl Contacts {
     /// when given: contacts detected from the start, then the exact check of every path after
     /// each solve adds the contacts it missed and the step is solved again from the start (at
     /// most `MAX_ROUNDS` solves, `MAX_SEGMENT_ROUNDS` while only hair segments get contacts;
-    /// the last one's penetration is reported). If primitives of the
-    /// solids still pass through each other, the step fails with
+    /// the last one's penetration is reported; the statistics count every solve). If
+    /// primitives of the solids still pass through each other, the step fails with
     /// [`StepError::Intersecting`] so that the caller retries it smaller, unless `last_try`:
     /// then the free vertices are cut back to the last time continuous detection proved safe.
     /// Counts go to `cs`.
