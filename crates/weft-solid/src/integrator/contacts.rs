@@ -525,7 +525,9 @@ impl Integrator {
                 // solve puts them back where the law wants them, and the step that ends a
                 // Newton loop is below the tolerance, so its correction is negligible. Holding
                 // them (as before) left the segments between two contacts uncorrected, and
-                // their full steps were halved: hair_on_head 13.3 → 7.7 iterations a step.
+                // their full steps were halved: hair_on_head 13.3 → 7.7 iterations a step in
+                // the last exact-check round of each (what the statistics then counted),
+                // 11.2 → 5.8 s for the run.
                 if alpha == 1.0 && !self.correction.is_empty() {
                     stats.correction_sweeps += self.correction.apply(
                         &self.free_of,
