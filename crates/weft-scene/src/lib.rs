@@ -23,6 +23,6 @@ pub use obj::{ObjError, read_obj, write_obj_curves, write_obj_mesh};
 pub use preview::{Camera, Image, PreviewError, PreviewItem, auto_camera, render, write_png};
 pub use sec::{
     Attachment, AttachmentMode, Collider, CollisionGroup, CollisionResponse, Density,
-    DiscreteShell, DomainSide, Drag, Fluid, FluidDomain, Members, Rod, Sec, SecSet,
+    DiscreteShell, DomainSide, Drag, Fluid, FluidDomain, Members, Rod, Sec, SecSet, SlideRail,
 };
 pub use usd::{UsdError, UsdaScene};

@@ -289,7 +289,20 @@ pub enum AttachmentMode {
     Hard,
     /// Through a zero-length spring of this stiffness [N/m].
     Spring(f64),
+    /// On a rail, free along it (exactly: the [`SlideRail`] SEC on the same attachment
+    /// element gives the rails).
+    Slide,
 }
+
+/// Slide Rail: the curves a sliding attachment's vertices stay on (polylines, in the frame
+/// of the attachment element's transform; world when it has none). Each vertex slides on
+/// the curve nearest to it at the start, and is moved onto it there.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SlideRail {
+    /// The rails.
+    pub curves: crate::Curves,
+}
+sec_impl!(SlideRail, "slide_rail");
 
 /// Attachment: vertices of a target element that follow a fixed point or an animated
 /// transform. Carried by a data-less attachment element.

@@ -29,7 +29,8 @@ pub use behavior::{
     Load, LoadVertices, RodMaterial,
 };
 pub use build::{
-    ClampPin, Compiled, Pin, SYSTEM_BYTES_PER_VERTEX, SystemBuilder, compile, compile_within,
+    ClampPin, Compiled, Pin, RailPin, SYSTEM_BYTES_PER_VERTEX, SystemBuilder, compile,
+    compile_within,
 };
 pub use clamp::Ghost;
 pub use collide::{

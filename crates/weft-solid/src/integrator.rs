@@ -21,6 +21,7 @@
 
 mod contacts;
 mod correction;
+mod sliding;
 mod solve;
 
 use crate::energy::Local;
@@ -149,6 +150,11 @@ pub struct Integrator {
     /// Blocks beyond the elements' (free index pairs, sorted, lower first): the last
     /// contacts' between vertices that share no element.
     extra: Vec<(u32, u32)>,
+    /// Per free vertex: its slider's index in the system, or NONE (`sliding.rs`).
+    slide_of: Vec<u32>,
+    /// Per slider: its projector at the last assembly, and its diagonal's mean before it.
+    slide_proj: Vec<nalgebra::Matrix3<f64>>,
+    slide_scale: Vec<f64>,
 }
 
 impl Integrator {
@@ -476,6 +482,9 @@ impl Integrator {
             stop: None,
             max_bytes,
             extra,
+            slide_of: Vec::new(),
+            slide_proj: Vec::new(),
+            slide_scale: Vec::new(),
             per_element: RefCell::new(vec![0.0; slot_offset.len()]),
             slot_offset,
             colors,
@@ -621,6 +630,8 @@ impl Integrator {
             }
         }
         self.force_scale = per.iter().fold(self.force_scale, |a, b| a + b);
+        drop(per);
+        self.filter_sliders(sys, x);
     }
 
     fn shift_diagonal(&mut self, mu: f64) {
@@ -909,6 +920,7 @@ impl Integrator {
                     x[i] = g[i];
                 }
             }
+            self.retract(sys, &mut x);
             let stats = self.minimize(sys, &mut x, &x0, Mode::Static, settings)?;
             state.x = x;
             state.v.iter_mut().for_each(|v| *v = Vector3::zeros());
@@ -946,6 +958,7 @@ impl Integrator {
                 x[i] = guess.map_or(x0[i] + h * state.v[i], |g| g[i]);
             }
         }
+        self.retract(sys, x);
     }
 
     /// Moves `state` to static equilibrium under gravity, the constant forces and the elastic
@@ -963,6 +976,7 @@ impl Integrator {
         sys.check(state)?;
         let x0 = state.x.clone();
         let mut x = x0.clone();
+        self.retract(sys, &mut x);
         let stats = self.minimize(sys, &mut x, &x0, Mode::Static, settings)?;
         state.x = x;
         state.v.iter_mut().for_each(|v| *v = Vector3::zeros());
@@ -1078,6 +1092,9 @@ impl Integrator {
                         p + alpha * Vector3::new(self.dir[f], self.dir[f + 1], self.dir[f + 2])
                     };
                 }
+                let mut trial = std::mem::take(&mut self.x_trial);
+                self.retract(sys, &mut trial);
+                self.x_trial = trial;
                 if linearized || done {
                     break;
                 }
@@ -1106,6 +1123,9 @@ impl Integrator {
                         &self.x_trial,
                         &mut self.x_soc,
                     );
+                    let mut soc = std::mem::take(&mut self.x_soc);
+                    self.retract(sys, &mut soc);
+                    self.x_soc = soc;
                     let e2 = self.objective(sys, &self.x_soc, x0, mode);
                     if e2 <= e0 + 1e-4 * slope {
                         std::mem::swap(&mut self.x_trial, &mut self.x_soc);
@@ -1173,6 +1193,14 @@ impl Integrator {
                     * ((force[i] + sys.force(i) + drag) / m + sys.gravity
                         - sys.damping(i) * state.v[i]);
                 x[i] = x0[i] + h * v[i];
+            }
+        }
+        if !sys.sliders.is_empty() {
+            // On its rail at the end of the step, with the velocity that took it there.
+            self.retract(sys, &mut x);
+            for sl in &sys.sliders {
+                let i = sl.vertex as usize;
+                v[i] = (x[i] - x0[i]) / h;
             }
         }
         if !x.iter().chain(&v).all(|p| p.iter().all(|c| c.is_finite())) {

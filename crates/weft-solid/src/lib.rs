@@ -15,9 +15,11 @@ pub mod contact;
 pub mod energy;
 pub mod integrator;
 mod settings;
+pub mod slide;
 pub mod spd;
 pub mod system;
 pub mod verify;
 
 pub use integrator::{Integrator, Method, Settings, StepError, StepStats, StopCheck};
+pub use slide::{Rail, Slider};
 pub use system::{Elements, SolidSystem, State, SystemError, VertexDrag};

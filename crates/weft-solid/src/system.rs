@@ -4,6 +4,7 @@ use crate::energy::{
     Element, Hinge, Membrane, MidedgeBend, RodBend, RodClamp, RodStretch, ShellBend, ShellClamp,
     Spring,
 };
+use crate::slide::{Rail, Slider};
 use nalgebra::{Matrix3, Vector3};
 
 /// Every energy element of a system, grouped by type (no dynamic dispatch in storage).
@@ -106,6 +107,10 @@ pub struct SolidSystem {
     /// in v, so implicit Euler treats it exactly (the fluid coupling lags D and u between its
     /// Newton stages).
     pub drag: Vec<VertexDrag>,
+    /// Rails that sliding vertices stay on (moved between steps by the caller).
+    pub rails: Vec<Rail>,
+    /// Sliding vertices ([`crate::slide`]): each stays on its rail, free along it.
+    pub sliders: Vec<Slider>,
 }
 
 /// Linear drag on one vertex: force −D (v − u).
@@ -138,6 +143,8 @@ impl SolidSystem {
             damping: Vec::new(),
             forces: Vec::new(),
             drag: Vec::new(),
+            rails: Vec::new(),
+            sliders: Vec::new(),
         }
     }
     /// Damping coefficient of vertex `i` [1/s] (zero when none are set).
@@ -197,6 +204,17 @@ pub enum SystemError {
         vertex: usize,
         /// Vertex count.
         n: usize,
+    },
+    /// A sliding vertex that cannot slide: out of range, held, listed twice, or on a rail
+    /// that does not exist or has no segment of positive, finite length.
+    ///
+    /// Vertex 4 slides on rail 2, but there are 2 rails.
+    #[error("sliding vertex {vertex}: {reason}")]
+    BadSlider {
+        /// The vertex.
+        vertex: usize,
+        /// What is wrong.
+        reason: String,
     },
     /// A position or velocity is NaN or infinite.
     ///
@@ -262,9 +280,39 @@ impl SolidSystem {
                 bad.get_or_insert(v as usize);
             }
         });
-        match bad {
-            Some(vertex) => Err(SystemError::VertexOutOfRange { vertex, n }),
-            None => Ok(()),
+        if let Some(vertex) = bad {
+            return Err(SystemError::VertexOutOfRange { vertex, n });
         }
+        let mut sliding = vec![false; n];
+        for sl in &self.sliders {
+            let vertex = sl.vertex as usize;
+            let fail = |reason: String| Err(SystemError::BadSlider { vertex, reason });
+            if vertex >= n {
+                return fail(format!("there are {n} vertices"));
+            }
+            if self.pinned[vertex] {
+                return fail("it is also held in place".into());
+            }
+            if std::mem::replace(&mut sliding[vertex], true) {
+                return fail("it is listed twice".into());
+            }
+            match self.rails.get(sl.rail as usize) {
+                None => {
+                    return fail(format!(
+                        "it slides on rail {}, but there are {} rails",
+                        sl.rail,
+                        self.rails.len()
+                    ));
+                }
+                Some(r) if !r.is_usable() => {
+                    return fail(format!(
+                        "rail {} has no segment of positive, finite length",
+                        sl.rail
+                    ));
+                }
+                Some(_) => {}
+            }
+        }
+        Ok(())
     }
 }

@@ -289,6 +289,82 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
     )?;
     r.register(
         NodeSpec::new(
+            "geo.arc",
+            "a circular arc (or a whole circle) as one polyline: a curved rail, a ring, a bent test strand",
+        )
+        .output("curves", "curves", "the arc")
+        .param(ParamSpec::vec3("center", [0.0; 3]).unit("m").doc("centre of the circle"))
+        .param(ParamSpec::float("radius", 0.5).gt(0.0).unit("m").doc("radius"))
+        .param(ParamSpec::vec3("axis", [0.0, 0.0, 1.0]).doc("normal of the circle's plane; angles turn about it (right hand)"))
+        .param(ParamSpec::vec3("from", [1.0, 0.0, 0.0]).doc("direction of angle 0, projected into the plane"))
+        .param(ParamSpec::float("start_angle", 0.0).ge(-720.0).le(720.0).unit("deg").doc("angle of the first vertex"))
+        .param(ParamSpec::float("end_angle", 360.0).ge(-720.0).le(720.0).unit("deg").doc("angle of the last vertex (at most a turn from the first)"))
+        .param(ParamSpec::int("segments", 64).ge(1.0).le(10_000_000.0).doc("segments along the arc")),
+        |p| {
+            let sweep = p.f64("end_angle")? - p.f64("start_angle")?;
+            if sweep == 0.0 || sweep.abs() > 360.0 {
+                return Err(format!("param 'end_angle': the arc must turn by more than 0 and at most 360 degrees from 'start_angle' (it turns {sweep})"));
+            }
+            arc_frame(p.vec3("axis")?, p.vec3("from")?)?;
+            Ok(Kernel::from_fn(|cx| {
+                let p = cx.params().clone();
+                let (u, w) = arc_frame(p.vec3("axis")?, p.vec3("from")?).map_err(NodeError::Failed)?;
+                let (c, r, n) = (p.vec3("center")?, p.f64("radius")?, p.usize("segments")?);
+                let (a0, a1) = (p.f64("start_angle")?.to_radians(), p.f64("end_angle")?.to_radians());
+                let v = n as u64 + 1;
+                check_size(cx, v, product(&[v, 48]), || format!("segments = {n}"), "lower segments")?;
+                let positions = (0..=n)
+                    .map(|i| {
+                        let t = a0 + (a1 - a0) * i as f64 / n as f64;
+                        let (sin, cos) = t.sin_cos();
+                        [0, 1, 2].map(|k| c[k] + r * (cos * u[k] + sin * w[k]))
+                    })
+                    .collect();
+                cx.set("curves", Value::new(Curves { positions, offsets: vec![0, v as u32] }));
+                Ok(())
+            }))
+        },
+    )?;
+    r.register(
+        NodeSpec::new(
+            "geo.polyline",
+            "one polyline through the listed points (a rail, a path, a hand-made strand)",
+        )
+        .output("curves", "curves", "the polyline")
+        .param(
+            ParamSpec::floats("points", &[0.0, 0.0, 0.0, 1.0, 0.0, 0.0])
+                .unit("m")
+                .doc("x, y, z of each point in order: two points or more"),
+        ),
+        |p| {
+            let pts = p.floats("points")?;
+            if pts.len() < 6 || pts.len() % 3 != 0 {
+                return Err(format!(
+                    "param 'points': needs x, y, z of two points or more (got {} numbers)",
+                    pts.len()
+                ));
+            }
+            if let Some(i) = pts.iter().position(|v| !v.is_finite()) {
+                return Err(format!("param 'points': entry {i} is not finite"));
+            }
+            Ok(Kernel::from_fn(|cx| {
+                let pts = cx.params().floats("points")?;
+                let positions: Vec<[f64; 3]> =
+                    pts.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+                let v = positions.len() as u32;
+                cx.set(
+                    "curves",
+                    Value::new(Curves {
+                        positions,
+                        offsets: vec![0, v],
+                    }),
+                );
+                Ok(())
+            }))
+        },
+    )?;
+    r.register(
+        NodeSpec::new(
             "geo.obj",
             "a triangle mesh read from an OBJ file (all objects merged, faces triangulated)",
         )
@@ -346,4 +422,25 @@ impl weft_graph::Compute for ObjFile {
         cx.set("mesh", Value::new(m));
         Ok(())
     }
+}
+
+/// The in-plane frame of an arc: `from` made orthogonal to `axis` (u), and axis × u (w).
+fn arc_frame(axis: [f64; 3], from: [f64; 3]) -> Result<([f64; 3], [f64; 3]), String> {
+    let a = nalgebra::Vector3::from(axis);
+    let f = nalgebra::Vector3::from(from);
+    let an = a.norm();
+    if !(an > 0.0 && an.is_finite()) {
+        return Err("param 'axis': must be a non-zero, finite direction".into());
+    }
+    let a = a / an;
+    let u = f - a * a.dot(&f);
+    let un = u.norm();
+    if !(un > 1e-9 * f.norm().max(f64::MIN_POSITIVE) && un.is_finite()) {
+        return Err(
+            "param 'from': must not be parallel to 'axis' (it gives angle 0 in the plane)".into(),
+        );
+    }
+    let u = u / un;
+    let w = a.cross(&u);
+    Ok((u.into(), w.into()))
 }

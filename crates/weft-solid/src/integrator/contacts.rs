@@ -516,6 +516,7 @@ impl Integrator {
                         p + alpha * Vector3::new(delta[f], delta[f + 1], delta[f + 2])
                     };
                 }
+                self.retract(sys, &mut trial);
                 let unresolvable = -slope * alpha <= 64.0 * f64::EPSILON * self.force_scale * xmax;
                 if phi(self, &trial) <= e0 + 1e-4 * alpha * slope || unresolvable || alpha < 1e-10 {
                     break;
@@ -537,6 +538,9 @@ impl Integrator {
                         &trial,
                         &mut self.x_soc,
                     );
+                    let mut soc = std::mem::take(&mut self.x_soc);
+                    self.retract(sys, &mut soc);
+                    self.x_soc = soc;
                     if phi(self, &self.x_soc) <= e0 + 1e-4 * slope {
                         trial.copy_from_slice(&self.x_soc);
                         stats.corrections += 1;

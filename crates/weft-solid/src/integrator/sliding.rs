@@ -1,0 +1,234 @@
+//! The Newton solve's side of sliding attachments ([`crate::slide`]): the filter that keeps
+//! each sliding vertex's direction along its rail, and the retraction that puts its trial
+//! positions back on the rail.
+
+use nalgebra::{Matrix3, Vector3};
+
+use super::{Integrator, NONE};
+use crate::slide::projector;
+use crate::system::SolidSystem;
+
+impl Integrator {
+    /// Maps free vertices to their sliders (the system's sliders may change between calls).
+    fn map_sliders(&mut self, sys: &SolidSystem) {
+        self.slide_of.clear();
+        self.slide_of.resize(self.n_free, NONE);
+        self.slide_proj.clear();
+        self.slide_proj.resize(sys.sliders.len(), Matrix3::zeros());
+        self.slide_scale.clear();
+        self.slide_scale.resize(sys.sliders.len(), 0.0);
+        for (k, sl) in sys.sliders.iter().enumerate() {
+            let f = self.free_of[sl.vertex as usize];
+            if f != NONE {
+                self.slide_of[f as usize] = k as u32;
+            }
+        }
+    }
+
+    /// Moves every sliding vertex of `x` to its rail's closest point.
+    pub(super) fn retract(&self, sys: &SolidSystem, x: &mut [Vector3<f64>]) {
+        for sl in &sys.sliders {
+            let v = sl.vertex as usize;
+            // `SolidSystem::check` refused rails without a usable segment.
+            if let Some(on) = sys.rails[sl.rail as usize].closest(&x[v]) {
+                x[v] = on.point;
+            }
+        }
+    }
+
+    /// Filters the assembled gradient and matrix at `x` (on the rails): each sliding vertex's
+    /// rows and columns are multiplied by its projector P, its gradient by P, and s (I − P) is
+    /// added to its diagonal block, s the mean of its diagonal before (positive: the block of
+    /// an SPD matrix). The matrix stays SPD when it was, and its solution moves sliding
+    /// vertices along their rails only.
+    pub(super) fn filter_sliders(&mut self, sys: &SolidSystem, x: &[Vector3<f64>]) {
+        if sys.sliders.is_empty() {
+            return;
+        }
+        self.map_sliders(sys);
+        for (k, sl) in sys.sliders.iter().enumerate() {
+            let v = sl.vertex as usize;
+            let f = self.free_of[v];
+            if f == NONE {
+                continue;
+            }
+            let f = 3 * f as usize;
+            let g = Vector3::new(self.grad[f], self.grad[f + 1], self.grad[f + 2]);
+            self.slide_proj[k] = match sys.rails[sl.rail as usize].closest(&x[v]) {
+                Some(on) => projector(&on, &g),
+                None => Matrix3::zeros(),
+            };
+        }
+        for (k, sl) in sys.sliders.iter().enumerate() {
+            let f = self.free_of[sl.vertex as usize];
+            if f != NONE {
+                let f = f as usize;
+                self.slide_scale[k] = (0..3)
+                    .map(|c| self.values[self.diagonal_entry(f, c)])
+                    .sum::<f64>()
+                    / 3.0;
+            }
+        }
+        let proj = |s: &Self, f: usize| {
+            let k = s.slide_of[f];
+            (k != NONE).then(|| s.slide_proj[k as usize])
+        };
+        for fb in 0..self.n_free {
+            let pb = proj(self, fb);
+            let start = self.col_ptr[3 * fb];
+            let slots = (self.col_ptr[3 * fb + 1] - start) / 3;
+            for s in 0..slots {
+                let fa = self.row_idx[start + 3 * s] / 3;
+                let pa = proj(self, fa);
+                if pa.is_none() && pb.is_none() {
+                    continue;
+                }
+                let mut b = Matrix3::zeros();
+                for cc in 0..3 {
+                    let base = self.col_ptr[3 * fb + cc] + 3 * s;
+                    for rr in 0..3 {
+                        b[(rr, cc)] = self.values[base + rr];
+                    }
+                }
+                if let Some(pa) = pa {
+                    b = pa * b;
+                }
+                if let Some(pb) = pb {
+                    b *= pb;
+                }
+                for cc in 0..3 {
+                    let base = self.col_ptr[3 * fb + cc] + 3 * s;
+                    for rr in 0..3 {
+                        self.values[base + rr] = b[(rr, cc)];
+                    }
+                }
+            }
+        }
+        for (k, sl) in sys.sliders.iter().enumerate() {
+            let f = self.free_of[sl.vertex as usize];
+            if f == NONE {
+                continue;
+            }
+            let f = f as usize;
+            let p = self.slide_proj[k];
+            let g = p * Vector3::new(self.grad[3 * f], self.grad[3 * f + 1], self.grad[3 * f + 2]);
+            let normal = self.slide_scale[k] * (Matrix3::identity() - p);
+            for c in 0..3 {
+                self.grad[3 * f + c] = g[c];
+                let base = self.col_ptr[3 * f + c] + 3 * self.diag_slot[f] as usize;
+                for r in 0..3 {
+                    self.values[base + r] += normal[(r, c)];
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::energy::RodStretch;
+    use crate::slide::{Rail, Slider};
+    use crate::{Integrator, Method, Settings, SolidSystem, State};
+    use nalgebra::Vector3;
+
+    fn settings() -> Settings {
+        Settings {
+            method: Method::Newton,
+            tolerance: 1e-12,
+            max_iterations: 50,
+        }
+    }
+
+    /// A rail through the origin tilted θ below +x in the xy plane (gravity −y), long enough.
+    fn tilted(theta: f64) -> (Rail, Vector3<f64>) {
+        let t = Vector3::new(theta.cos(), -theta.sin(), 0.0);
+        (
+            Rail {
+                points: vec![-10.0 * t, 10.0 * t],
+            },
+            t,
+        )
+    }
+
+    #[test]
+    fn a_bead_on_a_tilted_wire_accelerates_at_g_sin_theta() {
+        // Implicit Euler with a constant force along the rail is exact in the velocity:
+        // v_n = n h g sin θ. Two vertices joined by a stiff segment both slide (the rod's
+        // stretch couples the two filtered rows).
+        let theta = 0.3f64;
+        let (rail, t) = tilted(theta);
+        let mut sys = SolidSystem::new(vec![0.01, 0.01]);
+        sys.gravity = Vector3::new(0.0, -9.81, 0.0);
+        sys.elements.stretches.push(RodStretch {
+            v: [0, 1],
+            rest_length: 0.01,
+            k: 1e4,
+        });
+        sys.rails.push(rail.clone());
+        sys.sliders = vec![Slider { vertex: 0, rail: 0 }, Slider { vertex: 1, rail: 0 }];
+        let mut s = State {
+            x: vec![Vector3::zeros(), 0.01 * t],
+            v: vec![Vector3::zeros(); 2],
+        };
+        let mut integ = Integrator::new(&sys).unwrap();
+        let h = 0.01;
+        for _ in 0..100 {
+            integ.step(&sys, &mut s, None, h, &settings()).unwrap();
+        }
+        let a = 9.81 * theta.sin();
+        for i in 0..2 {
+            let along = s.v[i].dot(&t);
+            assert!((along - a).abs() < 1e-9 * a, "v {along} want {a}");
+            let off = (s.x[i] - rail.closest(&s.x[i]).unwrap().point).norm();
+            assert!(off < 1e-12, "off the rail by {off:e} m");
+            // Velocity along the rail only (both ends of every step are on it).
+            assert!((s.v[i] - along * t).norm() < 1e-9, "{:?}", s.v[i]);
+        }
+        assert!(((s.x[1] - s.x[0]).norm() - 0.01).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_bead_stops_at_the_end_of_its_rail() {
+        let (mut rail, t) = tilted(0.5);
+        rail.points[1] = 0.2 * t; // the low end, 0.2 m down the rail
+        let mut sys = SolidSystem::new(vec![0.1]);
+        sys.gravity = Vector3::new(0.0, -9.81, 0.0);
+        sys.rails.push(rail);
+        sys.sliders.push(Slider { vertex: 0, rail: 0 });
+        let mut s = State {
+            x: vec![Vector3::new(0.0, 0.05, 0.0)], // off the rail: put on it first
+            v: vec![Vector3::zeros()],
+        };
+        let mut integ = Integrator::new(&sys).unwrap();
+        for _ in 0..200 {
+            integ.step(&sys, &mut s, None, 0.01, &settings()).unwrap();
+        }
+        assert!((s.x[0] - 0.2 * t).norm() < 1e-12, "{:?}", s.x[0]);
+        assert!(s.v[0].norm() < 1e-9, "{:?}", s.v[0]);
+    }
+
+    #[test]
+    fn bad_sliders_are_refused_by_name() {
+        let mut sys = SolidSystem::new(vec![1.0]);
+        let s = State {
+            x: vec![Vector3::zeros()],
+            v: vec![Vector3::zeros()],
+        };
+        sys.sliders.push(Slider { vertex: 0, rail: 0 });
+        let e = sys.check(&s).unwrap_err().to_string();
+        assert!(e.contains("rail 0, but there are 0 rails"), "{e}");
+        sys.rails.push(Rail {
+            points: vec![Vector3::zeros(); 2],
+        });
+        let e = sys.check(&s).unwrap_err().to_string();
+        assert!(e.contains("positive, finite length"), "{e}");
+        sys.rails[0].points[1] = Vector3::x();
+        sys.sliders.push(Slider { vertex: 0, rail: 0 });
+        let e = sys.check(&s).unwrap_err().to_string();
+        assert!(e.contains("listed twice"), "{e}");
+        sys.sliders.pop();
+        sys.pinned[0] = true;
+        let e = sys.check(&s).unwrap_err().to_string();
+        assert!(e.contains("held in place"), "{e}");
+    }
+}
