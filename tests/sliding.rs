@@ -28,17 +28,18 @@ fn to_polyline(p: [f64; 3], points: &[[f64; 3]]) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
-/// A bead (a one-segment strand, both vertices sliding) on the rail `rail_node`, starting
-/// between `a` and `b`.
-fn bead_graph(rail_node: &str, a: [f64; 3], b: [f64; 3], substeps: u32) -> Graph {
+/// A bead (a one-segment strand, both vertices sliding) starting between `a` and `b`, on
+/// what the extra nodes `target` make and `onto` names (e.g. `"along": "rail.curves"`), with
+/// friction `mu`.
+fn bead_on(target: &str, onto: &str, mu: f64, a: [f64; 3], b: [f64; 3], substeps: u32) -> Graph {
     let nodes = format!(
-        r#""rail": {rail_node},
+        r#"{target},
         "line": {{"type": "geo.line", "params": {{"start": {a:?}, "end": {b:?}, "segments": 1}}}},
         "bead": {{"type": "convert.hair", "inputs": {{"curves": "line.curves"}}, "params": {{"name": "bead"}}}},
         "rod": {{"type": "sec.rod", "inputs": {{"element": "bead.element"}}, "params": {{"radius": 0.001}}}},
         "mass": {{"type": "sec.density", "inputs": {{"element": "rod.element"}}, "params": {{"line_density": 0.01}}}},
-        "slide": {{"type": "convert.attachment", "inputs": {{"target": "mass.element", "along": "rail.curves"}},
-                   "params": {{"name": "slide", "mode": "slide", "vertices": [0, 1]}}}},
+        "slide": {{"type": "convert.attachment", "inputs": {{"target": "mass.element", {onto}}},
+                   "params": {{"name": "slide", "mode": "slide", "vertices": [0, 1], "friction": {mu}}}}},
         "material": {{"type": "behavior.rod"}},
         "gravity": {{"type": "behavior.gravity"}},
         "attach": {{"type": "behavior.attachment"}},
@@ -51,40 +52,155 @@ fn bead_graph(rail_node: &str, a: [f64; 3], b: [f64; 3], substeps: u32) -> Graph
     graph(&file(&nodes, r#""v0": "v0.position", "v1": "v1.position""#))
 }
 
+/// A bead on the rail the node `rail_node` makes.
+fn bead_graph(rail_node: &str, a: [f64; 3], b: [f64; 3], substeps: u32) -> Graph {
+    bead_on(
+        &format!(r#""rail": {rail_node}"#),
+        r#""along": "rail.curves""#,
+        0.0,
+        a,
+        b,
+        substeps,
+    )
+}
+
+/// A straight wire through the origin, θ below +x in the xy plane: its rail node and a
+/// point at s metres along it.
+fn wire(theta: f64) -> (String, [[f64; 3]; 2], impl Fn(f64) -> [f64; 3]) {
+    let t = [theta.cos(), -theta.sin(), 0.0];
+    let at = move |s: f64| [s * t[0], s * t[1], s * t[2]];
+    let ends = [at(-5.0), at(5.0)];
+    let node = format!(
+        r#"{{"type": "geo.line", "params": {{"start": {:?}, "end": {:?}, "segments": 1}}}}"#,
+        ends[0], ends[1]
+    );
+    (node, ends, at)
+}
+
+/// Displacement along the unit direction `t` after `n` implicit Euler steps of `h` from rest
+/// under a constant acceleration `a` along it: v_k = k h a exactly, so s = a h² n (n + 1)/2.
+fn euler_distance(a: f64, h: f64, n: f64) -> f64 {
+    a * h * h * n * (n + 1.0) / 2.0
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
 #[test]
 fn a_bead_on_a_tilted_wire_accelerates_at_g_sin_theta() {
-    // A wire through the origin, 30° below +x in the xy plane; gravity −y.
+    // A wire 30° below +x in the xy plane; gravity −y.
     let th = 30f64.to_radians();
-    let t = [th.cos(), -th.sin(), 0.0];
-    let at = |s: f64| [s * t[0], s * t[1], s * t[2]];
-    let wire = [at(-5.0), at(5.0)];
-    let rail = format!(
-        r#"{{"type": "geo.line", "params": {{"start": {:?}, "end": {:?}, "segments": 1}}}}"#,
-        wire[0], wire[1]
-    );
+    let (rail, ends, at) = wire(th);
+    let t = at(1.0);
     let substeps = 4;
     let mut g = bead_graph(&rail, at(0.0), at(0.01), substeps);
     let h = 1.0 / (24.0 * substeps as f64);
-    let a = 9.81 * th.sin();
     for frame in 1..=24i64 {
         let p = vec3_at(&mut g, "v0", frame);
         let q = vec3_at(&mut g, "v1", frame);
         // On the wire, every frame (rounding: the points are made on its segment).
         for x in [p, q] {
-            let d = to_polyline(x, &wire);
+            let d = to_polyline(x, &ends);
             assert!(d < 1e-9, "frame {frame}: {d:e} m off the wire");
         }
-        // Implicit Euler under a constant force along the wire: v_n = n h a exactly, so
-        // s_n = a h² n (n + 1) / 2. The issue asks for g sin θ within 0.5 %; with the solve's
-        // tolerance of 1e-9 m/s it is within 1e-12 (measured 5e-13 at frame 24).
-        let n = (frame as u32 * substeps) as f64;
-        let want = a * h * h * n * (n + 1.0) / 2.0;
-        let s = p[0] * t[0] + p[1] * t[1] + p[2] * t[2];
+        // The issue asks for g sin θ within 0.5 %; with the solve's tolerance of 1e-9 m/s it
+        // is within 1e-12 of implicit Euler's exact answer (measured 5e-13 at frame 24).
+        let want = euler_distance(9.81 * th.sin(), h, (frame as u32 * substeps) as f64);
+        let s = dot(p, t);
         assert!(
             (s - want).abs() < 1e-9 * want,
             "frame {frame}: {s} m along the wire, want {want}"
         );
     }
+}
+
+#[test]
+fn friction_along_a_wire_slows_the_bead_by_coulomb_and_holds_it_below_the_friction_angle() {
+    // Sliding: θ = 30°, μ = 0.2, a = g (sin θ − μ cos θ) = 3.206 m/s². The normal force is
+    // the step's own at convergence (mg cos θ on a straight wire), and the bead moves faster
+    // than the mollifier's ε_v = 1e-4 m/s from the first step: Coulomb's law exactly.
+    let th = 30f64.to_radians();
+    let (rail, ends, at) = wire(th);
+    let (mu, substeps) = (0.2, 4);
+    let node = format!(r#""rail": {rail}"#);
+    let mut g = bead_on(
+        &node,
+        r#""along": "rail.curves""#,
+        mu,
+        at(0.0),
+        at(0.01),
+        substeps,
+    );
+    let h = 1.0 / (24.0 * substeps as f64);
+    let a = 9.81 * (th.sin() - mu * th.cos());
+    for frame in [1i64, 12, 24] {
+        let p = vec3_at(&mut g, "v0", frame);
+        assert!(to_polyline(p, &ends) < 1e-9);
+        let want = euler_distance(a, h, (frame as u32 * substeps) as f64);
+        let s = dot(p, at(1.0));
+        // Newton's tolerance 1e-9 m/s against a velocity of ~3 m/s.
+        assert!(
+            (s - want).abs() < 1e-8 * want,
+            "frame {frame}: {s} m along the wire, want {want}"
+        );
+    }
+    // Sticking: θ = 10° below the friction angle of μ = 0.3 (16.7°). The mollified law lets
+    // it creep below ε_v = 1e-4 m/s: under 1e-4 m in a second.
+    let th = 10f64.to_radians();
+    let (rail, _, at) = wire(th);
+    let node = format!(r#""rail": {rail}"#);
+    let mut g = bead_on(
+        &node,
+        r#""along": "rail.curves""#,
+        0.3,
+        at(0.0),
+        at(0.01),
+        4,
+    );
+    let s = dot(vec3_at(&mut g, "v0", 24), at(1.0));
+    assert!(s.abs() < 1e-4, "crept {s} m in 1 s");
+}
+
+#[test]
+fn a_bead_on_a_tilted_plane_slides_down_its_fall_line_and_stops_at_its_border() {
+    // A 2 m square (geo.grid, horizontal) turned θ = 25° about z by the attachment's transform;
+    // the bead lies along z at the origin. Downhill is −(cos θ, sin θ, 0); with μ = 0.2 it
+    // accelerates at g (sin θ − μ cos θ) down the fall line, on the plane to rounding.
+    let th = 25f64.to_radians();
+    let mu = 0.2;
+    let target = format!(
+        r#""plane": {{"type": "geo.grid", "params": {{"width": 2.0, "height": 2.0, "nx": 5, "ny": 5}}}},
+        "tilt": {{"type": "xform.animate", "params": {{"axis": [0, 0, 1], "angle": {th}}}}}"#
+    );
+    let onto = r#""onto": "plane.mesh", "transform": "tilt.transform""#;
+    let substeps = 4;
+    let mut g = bead_on(&target, onto, mu, [0.0; 3], [0.0, 0.0, 0.01], substeps);
+    let h = 1.0 / (24.0 * substeps as f64);
+    let down = [-th.cos(), -th.sin(), 0.0];
+    let normal = [-th.sin(), th.cos(), 0.0];
+    let a = 9.81 * (th.sin() - mu * th.cos());
+    for frame in [1i64, 6, 12] {
+        let p = vec3_at(&mut g, "v0", frame);
+        let off = dot(p, normal).abs();
+        assert!(off < 1e-9, "frame {frame}: {off:e} m off the plane");
+        assert!(
+            p[2].abs() < 1e-9,
+            "frame {frame}: left the fall line ({})",
+            p[2]
+        );
+        let want = euler_distance(a, h, (frame as u32 * substeps) as f64);
+        let s = dot(p, down);
+        assert!(
+            (s - want).abs() < 1e-8 * want,
+            "frame {frame}: {s} m down the plane, want {want}"
+        );
+    }
+    // By 2 s it has reached the border 1 m down (at ~1.1 s) and rests on it.
+    let (p, q) = (vec3_at(&mut g, "v0", 48), vec3_at(&mut g, "v0", 47));
+    assert!((dot(p, down) - 1.0).abs() < 1e-9, "{p:?}");
+    assert!(dot(p, normal).abs() < 1e-9);
+    assert!(dot([p[0] - q[0], p[1] - q[1], p[2] - q[2]], down).abs() < 1e-9);
 }
 
 #[test]

@@ -24,5 +24,6 @@ pub use preview::{Camera, Image, PreviewError, PreviewItem, auto_camera, render,
 pub use sec::{
     Attachment, AttachmentMode, Collider, CollisionGroup, CollisionResponse, Density,
     DiscreteShell, DomainSide, Drag, Fluid, FluidDomain, Members, Rod, Sec, SecSet, SlideRail,
+    SlideSurface,
 };
 pub use usd::{UsdError, UsdaScene};

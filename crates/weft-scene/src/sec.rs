@@ -289,9 +289,13 @@ pub enum AttachmentMode {
     Hard,
     /// Through a zero-length spring of this stiffness [N/m].
     Spring(f64),
-    /// On a rail, free along it (exactly: the [`SlideRail`] SEC on the same attachment
-    /// element gives the rails).
-    Slide,
+    /// On a rail or a surface, free along it (exactly: the [`SlideRail`] and
+    /// [`SlideSurface`] SECs on the same attachment element give them), with this Coulomb
+    /// friction coefficient along it.
+    Slide {
+        /// μ ≥ 0.
+        friction: f64,
+    },
 }
 
 /// Slide Rail: the curves a sliding attachment's vertices stay on (polylines, in the frame
@@ -303,6 +307,16 @@ pub struct SlideRail {
     pub curves: crate::Curves,
 }
 sec_impl!(SlideRail, "slide_rail");
+
+/// Slide Surface: a triangle mesh a sliding attachment's vertices stay on (in the frame of the
+/// attachment element's transform; world when it has none). With a Slide Rail as well, each
+/// vertex takes whichever is nearest to it at the start.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SlideSurface {
+    /// The surface.
+    pub mesh: crate::Mesh,
+}
+sec_impl!(SlideSurface, "slide_surface");
 
 /// Attachment: vertices of a target element that follow a fixed point or an animated
 /// transform. Carried by a data-less attachment element.

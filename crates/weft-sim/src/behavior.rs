@@ -9,7 +9,6 @@ use std::fmt::Debug;
 use std::sync::Arc;
 use weft_scene::{
     Attachment, AttachmentMode, Density, DiscreteShell, ElementKind, Geometry, Rod, SceneElement,
-    SlideRail,
 };
 use weft_solid::energy::{
     ClampedEdge, Membrane, MembraneMaterial, RodBend, RodClamp, RodStretch, Spring,
@@ -475,7 +474,7 @@ impl Behavior for AttachmentBehavior {
         "attachment"
     }
     fn reads(&self) -> &'static [&'static str] {
-        &["attachment", "slide_rail"]
+        &["attachment", "slide_rail", "slide_surface"]
     }
     fn apply(&self, scene: &[SceneElement], b: &mut SystemBuilder) -> Result<(), SimError> {
         for (ai, a) in scene.iter().enumerate() {
@@ -501,11 +500,15 @@ impl Behavior for AttachmentBehavior {
                 )));
             };
             let n = scene[ti].vertex_count();
-            let rails = if att.mode == AttachmentMode::Slide {
+            let targets = if let AttachmentMode::Slide { friction } = att.mode {
+                if !(friction >= 0.0 && friction.is_finite()) {
+                    return Err(fail(format!("friction must be ≥ 0, got {friction}")));
+                }
                 b.read(ai, "slide_rail");
-                rails(a, ai, b).map_err(fail)?
+                b.read(ai, "slide_surface");
+                crate::slide::targets(a, ai, b).map_err(fail)?
             } else {
-                0..0
+                (0..0, 0..0)
             };
             if let AttachmentMode::Spring(k) = att.mode
                 && !(k > 0.0 && k.is_finite())
@@ -525,7 +528,7 @@ impl Behavior for AttachmentBehavior {
                 }
                 let g = (v + off) as usize;
                 let spring = match att.mode {
-                    AttachmentMode::Slide => {
+                    AttachmentMode::Slide { friction } => {
                         // Two attachments on one vertex: said here, with their names.
                         if b.system.pinned[g]
                             || b.system.sliders.iter().any(|s| s.vertex as usize == g)
@@ -535,7 +538,7 @@ impl Behavior for AttachmentBehavior {
                                 att.target
                             )));
                         }
-                        slide(b, g, rails.clone(), &att.target, v);
+                        crate::slide::slide(b, g, targets.clone(), friction, &att.target, v);
                         continue;
                     }
                     AttachmentMode::Hard
@@ -567,81 +570,6 @@ impl Behavior for AttachmentBehavior {
         }
         Ok(())
     }
-}
-
-/// The rails of sliding attachment `a` (scene index `ai`) into the system, placed by its
-/// transform: their indices in `system.rails`.
-fn rails(
-    a: &SceneElement,
-    ai: usize,
-    b: &mut SystemBuilder,
-) -> Result<std::ops::Range<usize>, String> {
-    let Some(sec) = a.secs.get::<SlideRail>() else {
-        return Err(
-            "mode slide needs a rail (a Slide Rail SEC: connect convert.attachment's 'along')"
-                .into(),
-        );
-    };
-    let c = &sec.curves;
-    if c.is_empty() {
-        return Err("its rail has no curves".into());
-    }
-    let start = b.system.rails.len();
-    for k in 0..c.len() {
-        let local: Vec<Vector3<f64>> = c
-            .positions
-            .get(c.range(k))
-            .unwrap_or_default()
-            .iter()
-            .map(|p| Vector3::from(*p))
-            .collect();
-        let points = local
-            .iter()
-            .map(|l| match a.transform {
-                Some(t) => t.transform_point(&(*l).into()).coords,
-                None => *l,
-            })
-            .collect();
-        let rail = weft_solid::Rail { points };
-        if !rail.is_usable() {
-            return Err(format!(
-                "rail curve {k} needs two or more finite points with a segment of positive length"
-            ));
-        }
-        b.system.rails.push(rail);
-        b.rails.push(crate::RailPin {
-            rail: b.system.rails.len() - 1,
-            attachment: ai,
-            local,
-        });
-    }
-    Ok(start..b.system.rails.len())
-}
-
-/// Global vertex `g` (vertex `local` of element `name`) slides on the nearest of `rails`,
-/// moved onto it now (with a warning when that is more than a micrometre).
-fn slide(b: &mut SystemBuilder, g: usize, rails: std::ops::Range<usize>, name: &str, local: u32) {
-    let x = b.x[g];
-    let mut best: Option<(f64, usize, Vector3<f64>)> = None;
-    for r in rails {
-        if let Some(on) = b.system.rails[r].closest(&x) {
-            let d = (on.point - x).norm();
-            if best.is_none_or(|(bd, _, _)| d < bd) {
-                best = Some((d, r, on.point));
-            }
-        }
-    }
-    let Some((d, r, p)) = best else { return };
-    if d > 1e-6 {
-        b.warn(format!(
-            "vertex {local} of '{name}' starts {d:.3e} m from its rail: moved onto it"
-        ));
-    }
-    b.x[g] = p;
-    b.system.sliders.push(weft_solid::Slider {
-        vertex: g as u32,
-        rail: r as u32,
-    });
 }
 
 /// The clamps of attachment `ai` on element `ti` (first global vertex `off`): a

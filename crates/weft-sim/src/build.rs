@@ -1,7 +1,7 @@
 //! Compiling (scene, Behavior tree) into a solid system with exactly the terms the scene needs.
 
 use crate::behavior::BehaviorTree;
-pub use crate::builder::{ClampPin, Pin, RailPin, SystemBuilder};
+pub use crate::builder::{ClampPin, Pin, SystemBuilder};
 use crate::error::SimError;
 use nalgebra::Vector3;
 use std::collections::{BTreeMap, BTreeSet};
@@ -22,8 +22,9 @@ pub struct Compiled {
     pub pins: Vec<Pin>,
     /// Clamped roots (their directions follow the attachments' rotations).
     pub clamps: Vec<ClampPin>,
-    /// Rails of sliding attachments (they move with the attachments' transforms).
-    pub rails: Vec<RailPin>,
+    /// Rails and surfaces of sliding attachments (they move with the attachments'
+    /// transforms).
+    pub targets: Vec<crate::slide::TargetPin>,
     /// Problems that do not stop the simulation (unread SECs, non-manifold edges).
     pub warnings: Vec<String>,
     /// Terms in the system, by kind: what the scene asked for and nothing else.
@@ -120,19 +121,14 @@ impl Compiled {
                 system.elements.springs[k].target = x;
             }
         }
-        for r in &self.rails {
+        for r in &self.targets {
+            let a = r.attachment();
             let t = lerp(
-                from.get(r.attachment).copied().flatten(),
-                to.get(r.attachment).copied().flatten(),
+                from.get(a).copied().flatten(),
+                to.get(a).copied().flatten(),
                 s,
             );
-            let points = &mut system.rails[r.rail].points;
-            for (p, l) in points.iter_mut().zip(&r.local) {
-                *p = match t {
-                    Some(t) => t.transform_point(&(*l).into()).coords,
-                    None => *l,
-                };
-            }
+            r.place(t, system);
         }
         for c in &self.clamps {
             let t = lerp(
@@ -232,7 +228,7 @@ pub fn compile_within(
         ranges,
         pins: Vec::new(),
         clamps: Vec::new(),
-        rails: Vec::new(),
+        targets: Vec::new(),
         ghosts: ghosts.into_iter().map(|(g, _)| g).collect(),
         warnings: Vec::new(),
         read: vec![BTreeSet::new(); scene.len()],
@@ -341,7 +337,7 @@ pub fn compile_within(
         ranges: b.ranges,
         pins: b.pins,
         clamps: b.clamps,
-        rails: b.rails,
+        targets: b.targets,
         warnings: b.warnings,
         terms,
         drag_elements: b.drag_elements,

@@ -32,17 +32,6 @@ pub struct ClampPin {
     pub local: Vector3<f64>,
 }
 
-/// A rail of sliding attachments and where its points come from.
-#[derive(Clone, Debug, PartialEq)]
-pub struct RailPin {
-    /// Index of the rail in `system.rails`.
-    pub rail: usize,
-    /// Scene index of the attachment element (whose transform, if any, moves the rail).
-    pub attachment: usize,
-    /// The rail's points in the attachment transform's frame (world when it has none).
-    pub local: Vec<Vector3<f64>>,
-}
-
 /// Builds a system while Behaviors apply.
 pub struct SystemBuilder {
     /// The system so far.
@@ -52,7 +41,7 @@ pub struct SystemBuilder {
     pub(crate) ranges: Vec<Option<Range<usize>>>,
     pub(crate) pins: Vec<Pin>,
     pub(crate) clamps: Vec<ClampPin>,
-    pub(crate) rails: Vec<RailPin>,
+    pub(crate) targets: Vec<crate::slide::TargetPin>,
     /// Ghost vertices behind clamped cloth edges (made before any Behavior applies).
     pub ghosts: Vec<crate::Ghost>,
     pub(crate) warnings: Vec<String>,

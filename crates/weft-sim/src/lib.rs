@@ -21,6 +21,7 @@ mod error;
 pub mod estimate;
 mod fluid;
 mod relaxation;
+mod slide;
 mod stepper;
 pub mod verify;
 
@@ -29,8 +30,7 @@ pub use behavior::{
     Load, LoadVertices, RodMaterial,
 };
 pub use build::{
-    ClampPin, Compiled, Pin, RailPin, SYSTEM_BYTES_PER_VERTEX, SystemBuilder, compile,
-    compile_within,
+    ClampPin, Compiled, Pin, SYSTEM_BYTES_PER_VERTEX, SystemBuilder, compile, compile_within,
 };
 pub use clamp::Ghost;
 pub use collide::{
@@ -43,4 +43,5 @@ pub use coupled::{
 pub use error::SimError;
 pub use fluid::FluidSpec;
 pub use relaxation::{Relaxation, RelaxationMethod, fluid_change, relax, velocity_change};
+pub use slide::{SurfaceMesh, TargetPin};
 pub use stepper::{FrameStats, Scheme, SimState, SolidStepper, StepperSettings};

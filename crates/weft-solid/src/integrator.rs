@@ -155,6 +155,8 @@ pub struct Integrator {
     /// Per slider: its projector at the last assembly, and its diagonal's mean before it.
     slide_proj: Vec<nalgebra::Matrix3<f64>>,
     slide_scale: Vec<f64>,
+    /// Per slider: the normal force its target supplied at the last assembly [N].
+    slide_normal: Vec<f64>,
 }
 
 impl Integrator {
@@ -485,6 +487,7 @@ impl Integrator {
             slide_of: Vec::new(),
             slide_proj: Vec::new(),
             slide_scale: Vec::new(),
+            slide_normal: Vec::new(),
             per_element: RefCell::new(vec![0.0; slot_offset.len()]),
             slot_offset,
             colors,
@@ -541,7 +544,13 @@ impl Integrator {
             });
         }
         // Summed in element order: the same bits at any thread count.
-        per.iter().fold(e, |a, b| a + b)
+        let e = per.iter().fold(e, |a, b| a + b);
+        match mode {
+            Mode::Dynamic { h } if !sys.sliders.is_empty() => {
+                e + self.friction_energy(sys, x, x0, h)
+            }
+            _ => e,
+        }
     }
 
     /// Fills `grad` and `values` at `x`, with every element Hessian projected to PSD.
@@ -631,7 +640,7 @@ impl Integrator {
         }
         self.force_scale = per.iter().fold(self.force_scale, |a, b| a + b);
         drop(per);
-        self.filter_sliders(sys, x);
+        self.filter_sliders(sys, x, x0, mode);
     }
 
     fn shift_diagonal(&mut self, mu: f64) {
@@ -1072,6 +1081,10 @@ impl Integrator {
             let done = !linearized && res < settings.tolerance;
             // Backtracking line search on the objective (Armijo, c = 1e-4).
             // (Not needed when the whole step is taken.)
+            // Sliders' friction depends on this iteration's normal forces: a new objective.
+            if Self::slide_friction(sys) {
+                e_at_x = None;
+            }
             let (e0, slope, xmax) = if linearized || done {
                 (0.0, 0.0, 0.0)
             } else {

@@ -21,5 +21,5 @@ pub mod system;
 pub mod verify;
 
 pub use integrator::{Integrator, Method, Settings, StepError, StepStats, StopCheck};
-pub use slide::{Rail, Slider};
+pub use slide::{OnSurface, Rail, SlideOn, Slider, Surface};
 pub use system::{Elements, SolidSystem, State, SystemError, VertexDrag};

@@ -4,8 +4,9 @@ use crate::energy::{
     Element, Hinge, Membrane, MidedgeBend, RodBend, RodClamp, RodStretch, ShellBend, ShellClamp,
     Spring,
 };
-use crate::slide::{Rail, Slider};
+use crate::slide::{Rail, SlideOn, Slider, Surface};
 use nalgebra::{Matrix3, Vector3};
+use std::sync::Arc;
 
 /// Every energy element of a system, grouped by type (no dynamic dispatch in storage).
 #[derive(Clone, Debug, Default)]
@@ -109,6 +110,8 @@ pub struct SolidSystem {
     pub drag: Vec<VertexDrag>,
     /// Rails that sliding vertices stay on (moved between steps by the caller).
     pub rails: Vec<Rail>,
+    /// Surfaces that sliding vertices stay on (replaced between steps by the caller).
+    pub surfaces: Vec<Arc<dyn Surface>>,
     /// Sliding vertices ([`crate::slide`]): each stays on its rail, free along it.
     pub sliders: Vec<Slider>,
 }
@@ -144,6 +147,7 @@ impl SolidSystem {
             forces: Vec::new(),
             drag: Vec::new(),
             rails: Vec::new(),
+            surfaces: Vec::new(),
             sliders: Vec::new(),
         }
     }
@@ -205,8 +209,9 @@ pub enum SystemError {
         /// Vertex count.
         n: usize,
     },
-    /// A sliding vertex that cannot slide: out of range, held, listed twice, or on a rail
-    /// that does not exist or has no segment of positive, finite length.
+    /// A sliding vertex that cannot slide: out of range, held, listed twice, with a negative
+    /// or non-finite friction, or on a rail that does not exist or has no segment of positive,
+    /// finite length (or a surface that does not exist).
     ///
     /// Vertex 4 slides on rail 2, but there are 2 rails.
     #[error("sliding vertex {vertex}: {reason}")]
@@ -296,21 +301,35 @@ impl SolidSystem {
             if std::mem::replace(&mut sliding[vertex], true) {
                 return fail("it is listed twice".into());
             }
-            match self.rails.get(sl.rail as usize) {
-                None => {
-                    return fail(format!(
-                        "it slides on rail {}, but there are {} rails",
-                        sl.rail,
-                        self.rails.len()
-                    ));
+            if !(sl.friction >= 0.0 && sl.friction.is_finite()) {
+                return fail(format!(
+                    "friction must be ≥ 0 and finite, got {}",
+                    sl.friction
+                ));
+            }
+            match sl.on {
+                SlideOn::Rail(k) => match self.rails.get(k as usize) {
+                    None => {
+                        return fail(format!(
+                            "it slides on rail {k}, but there are {} rails",
+                            self.rails.len()
+                        ));
+                    }
+                    Some(r) if !r.is_usable() => {
+                        return fail(format!(
+                            "rail {k} has no segment of positive, finite length"
+                        ));
+                    }
+                    Some(_) => {}
+                },
+                SlideOn::Surface(k) => {
+                    if self.surfaces.get(k as usize).is_none() {
+                        return fail(format!(
+                            "it slides on surface {k}, but there are {} surfaces",
+                            self.surfaces.len()
+                        ));
+                    }
                 }
-                Some(r) if !r.is_usable() => {
-                    return fail(format!(
-                        "rail {} has no segment of positive, finite length",
-                        sl.rail
-                    ));
-                }
-                Some(_) => {}
             }
         }
         Ok(())

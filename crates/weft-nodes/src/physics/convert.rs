@@ -6,7 +6,8 @@ use weft_graph::{
 };
 use weft_scene::{
     Attachment, AttachmentMode, Channel, CollisionGroup, CollisionResponse, Curves, DomainSide,
-    ElementKind, FluidDomain, Geometry, Members, Mesh, SceneElement, SlideRail, Transform,
+    ElementKind, FluidDomain, Geometry, Members, Mesh, SceneElement, SlideRail, SlideSurface,
+    Transform,
 };
 
 fn check_name(p: &Params) -> Result<(), String> {
@@ -276,14 +277,16 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         NodeSpec::new("convert.attachment", "attaches vertices of an element to where they are at the start frame, carried by an optional animated transform")
             .input("target", "element", "the element whose vertices are attached")
             .input_default("transform", "transform", json!(null), "moves the attachment points (fixed in place when unconnected); with mode = slide, places the rails (their curves are in its frame)")
-            .input_default("along", "curves", json!(null), "mode = slide: the rails (polylines); each listed vertex slides on the one nearest to it at the start, moved onto it there, and stays on it exactly (a rail's ends are stops)")
+            .input_default("along", "curves", json!(null), "mode = slide: rails (polylines); each listed vertex slides on the rail or surface nearest to it at the start, moved onto it there, and stays on it exactly (a rail's ends are stops)")
+            .input_default("onto", "mesh", json!(null), "mode = slide: a surface (a collider's mesh, say) the listed vertices slide on, exactly (its open borders are stops)")
             .output("element", "element", "a data-less attachment element")
             .param(ParamSpec::string("name", "attachment").doc("element name, unique in the scene"))
             .param(ParamSpec::choice("select", &["vertices", "curve_roots"], "vertices").doc("vertices: the listed indices; curve_roots: the first vertices of every curve"))
             .param(ParamSpec::floats("vertices", &[]).doc("vertex indices (select = vertices)"))
             .param(ParamSpec::int("root_vertices", 2).ge(1.0).le(16.0).doc("vertices per curve root: 1 holds the root vertex and lets the strand turn about it; k >= 2 holds the first k - 1 and clamps the strand's direction at the last of them (2: a strand clamped at its root, bending over its whole length)"))
             .param(ParamSpec::bool("clamp", false).doc("select = vertices: also hold the direction the element leaves them in, as it starts and turned with the transform (cloth: its tangent plane along every border edge whose two vertices are listed, so one listed row is a clamped edge, not a hinge; strands: where the free strand leaves a listed vertex)"))
-            .param(ParamSpec::choice("mode", &["hard", "spring", "slide"], "hard").doc("hard: exactly; spring: a zero-length spring; slide: on the rails given to 'along', free along them (frictionless), exactly"))
+            .param(ParamSpec::choice("mode", &["hard", "spring", "slide"], "hard").doc("hard: exactly; spring: a zero-length spring; slide: on the rails ('along') or the surface ('onto'), free along them, exactly"))
+            .param(ParamSpec::float("friction", 0.0).ge(0.0).doc("mode = slide: Coulomb friction coefficient μ along the rail or surface (0: frictionless)"))
             .param(ParamSpec::float("stiffness", 1e3).gt(0.0).unit("N/m").doc("spring stiffness (mode = spring)")),
         |p| {
             check_name(p)?;
@@ -298,28 +301,33 @@ fn attachment(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let p = cx.params().clone();
     let mode = match p.str("mode")? {
         "spring" => AttachmentMode::Spring(p.f64("stiffness")?),
-        "slide" => AttachmentMode::Slide,
+        "slide" => AttachmentMode::Slide {
+            friction: p.f64("friction")?,
+        },
         _ => AttachmentMode::Hard,
     };
     let along = cx
         .input_opt("along")?
         .and_then(|v| v.get::<Curves>().cloned());
-    match (mode, &along) {
-        (AttachmentMode::Slide, None) => {
-            return Err(NodeError::Input {
-                port: "along".into(),
-                message:
-                    "mode = slide needs the rails: connect curves (geo.line, geo.arc, geo.polyline)"
-                        .into(),
-            });
+    let onto = cx.input_opt("onto")?.and_then(|v| v.get::<Mesh>().cloned());
+    let sliding = matches!(mode, AttachmentMode::Slide { .. });
+    if sliding {
+        let input = |port: &str, message: &str| NodeError::Input {
+            port: port.into(),
+            message: message.into(),
+        };
+        if along.is_none() && onto.is_none() {
+            return Err(input(
+                "along",
+                "mode = slide needs a rail or a surface: connect curves to 'along' (geo.line, geo.arc, geo.polyline) or a mesh to 'onto'",
+            ));
         }
-        (AttachmentMode::Slide, Some(c)) if c.is_empty() => {
-            return Err(NodeError::Input {
-                port: "along".into(),
-                message: "the rails have no curves".into(),
-            });
+        if along.as_ref().is_some_and(|c| c.is_empty()) {
+            return Err(input("along", "the rails have no curves"));
         }
-        _ => {}
+        if onto.as_ref().is_some_and(|m| m.triangles.is_empty()) {
+            return Err(input("onto", "the surface has no triangles"));
+        }
     }
     let sec = match p.str("select")? {
         "curve_roots" => match &*target.geometry {
@@ -360,8 +368,13 @@ fn attachment(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     }
     let mut e = SceneElement::new(p.str("name")?, ElementKind::Attachment, Geometry::None);
     e.secs.insert(sec);
-    if let (AttachmentMode::Slide, Some(curves)) = (mode, along) {
-        e.secs.insert(SlideRail { curves });
+    if sliding {
+        if let Some(curves) = along {
+            e.secs.insert(SlideRail { curves });
+        }
+        if let Some(mesh) = onto {
+            e.secs.insert(SlideSurface { mesh });
+        }
     }
     e.transform = match cx.input_opt("transform")? {
         Some(v) => v.get::<Transform>().copied(),

@@ -6,13 +6,14 @@ use weft_scene::Transform;
 
 pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
     r.register(
-        NodeSpec::new("xform.animate", "a rigid transform over time: offset + amplitude·sin(2πft) translation, rotation about an axis at a speed plus an oscillation")
+        NodeSpec::new("xform.animate", "a rigid transform over time: offset + amplitude·sin(2πft) translation, rotation about an axis by an angle, at a speed, plus an oscillation")
             .time(TimeClass::Animated)
             .output("transform", "transform", "the transform at the frame's time")
             .param(ParamSpec::vec3("translate", [0.0; 3]).unit("m").doc("constant translation"))
             .param(ParamSpec::vec3("oscillate", [0.0; 3]).unit("m").doc("translation amplitude"))
             .param(ParamSpec::float("frequency", 1.0).ge(0.0).unit("Hz").doc("oscillation frequency f"))
             .param(ParamSpec::vec3("axis", [0.0, 1.0, 0.0]).doc("rotation axis (through the origin)"))
+            .param(ParamSpec::float("angle", 0.0).unit("rad").doc("constant rotation (a tilted plane, a turned rail)"))
             .param(ParamSpec::float("spin", 0.0).unit("rad/s").doc("steady rotation speed"))
             .param(ParamSpec::float("swing", 0.0).unit("rad").doc("rotation oscillation amplitude (same frequency)")),
         |p| {
@@ -28,7 +29,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                 let tr = nalgebra::Translation3::new(c[0] + o[0] * s, c[1] + o[1] * s, c[2] + o[2] * s);
                 let a = p.vec3("axis")?;
                 let axis = nalgebra::Unit::new_normalize(nalgebra::Vector3::new(a[0], a[1], a[2]));
-                let angle = p.f64("spin")? * t + p.f64("swing")? * s;
+                let angle = p.f64("angle")? + p.f64("spin")? * t + p.f64("swing")? * s;
                 let x = Transform::from_parts(tr, nalgebra::UnitQuaternion::from_axis_angle(&axis, angle));
                 cx.set("transform", Value::new(x));
                 Ok(())

@@ -19,7 +19,7 @@
 //! step is solved again (CCD by growing the active set: a vertex falling at 10 m/s onto a
 //! thin plane is stopped whatever the step).
 
-mod bvh;
+pub(crate) mod bvh;
 pub(crate) mod ccd;
 pub(crate) mod geometry;
 mod solids;

@@ -4,19 +4,19 @@
 
 use nalgebra::{Matrix3, Vector3};
 
-use super::{Integrator, NONE};
-use crate::slide::projector;
+use super::{Integrator, Mode, NONE};
+use crate::slide::{FRICTION_EPS_V, friction_f0_f1, place, projector};
 use crate::system::SolidSystem;
 
 impl Integrator {
     /// Maps free vertices to their sliders (the system's sliders may change between calls).
     fn map_sliders(&mut self, sys: &SolidSystem) {
+        let k = sys.sliders.len();
         self.slide_of.clear();
         self.slide_of.resize(self.n_free, NONE);
-        self.slide_proj.clear();
-        self.slide_proj.resize(sys.sliders.len(), Matrix3::zeros());
-        self.slide_scale.clear();
-        self.slide_scale.resize(sys.sliders.len(), 0.0);
+        self.slide_proj.resize(k, Matrix3::zeros());
+        self.slide_scale.resize(k, 0.0);
+        self.slide_normal.resize(k, 0.0);
         for (k, sl) in sys.sliders.iter().enumerate() {
             let f = self.free_of[sl.vertex as usize];
             if f != NONE {
@@ -25,23 +25,57 @@ impl Integrator {
         }
     }
 
-    /// Moves every sliding vertex of `x` to its rail's closest point.
+    /// Moves every sliding vertex of `x` to its target's closest point.
     pub(super) fn retract(&self, sys: &SolidSystem, x: &mut [Vector3<f64>]) {
         for sl in &sys.sliders {
             let v = sl.vertex as usize;
-            // `SolidSystem::check` refused rails without a usable segment.
-            if let Some(on) = sys.rails[sl.rail as usize].closest(&x[v]) {
-                x[v] = on.point;
+            // `SolidSystem::check` refused targets without a closest point.
+            if let Some(p) = place(&sys.rails, &sys.surfaces, sl.on, &x[v]) {
+                x[v] = p.point;
             }
         }
     }
 
-    /// Filters the assembled gradient and matrix at `x` (on the rails): each sliding vertex's
-    /// rows and columns are multiplied by its projector P, its gradient by P, and s (I − P) is
-    /// added to its diagonal block, s the mean of its diagonal before (positive: the block of
-    /// an SPD matrix). The matrix stays SPD when it was, and its solution moves sliding
-    /// vertices along their rails only.
-    pub(super) fn filter_sliders(&mut self, sys: &SolidSystem, x: &[Vector3<f64>]) {
+    /// Whether any slider has friction (its potential then changes with the iterate's normal
+    /// force, so an objective value is not carried from one iteration to the next).
+    pub(super) fn slide_friction(sys: &SolidSystem) -> bool {
+        sys.sliders.iter().any(|s| s.friction > 0.0)
+    }
+
+    /// The sliders' friction potential Σ μ N f₀(|P (x − x⁰)|) at `x` (dynamic steps), with
+    /// the projectors and normal forces of the last assembly.
+    pub(super) fn friction_energy(
+        &self,
+        sys: &SolidSystem,
+        x: &[Vector3<f64>],
+        x0: &[Vector3<f64>],
+        h: f64,
+    ) -> f64 {
+        let mut e = 0.0;
+        for (k, sl) in sys.sliders.iter().enumerate() {
+            let n = self.slide_normal.get(k).copied().unwrap_or(0.0);
+            if sl.friction > 0.0 && n > 0.0 {
+                let v = sl.vertex as usize;
+                let u = self.slide_proj[k] * (x[v] - x0[v]);
+                e += sl.friction * n * friction_f0_f1(u.norm(), FRICTION_EPS_V * h).0;
+            }
+        }
+        e
+    }
+
+    /// Filters the assembled gradient and matrix at `x` (on the targets): each sliding
+    /// vertex's rows and columns are multiplied by its projector P, its gradient by P, and
+    /// s (I − P) is added to its diagonal block, s the mean of its diagonal before (positive:
+    /// the block of an SPD matrix). The matrix stays SPD when it was, and its solution moves
+    /// sliding vertices along their targets only. In dynamic steps, friction's gradient and
+    /// Hessian are added first, with N the normal part of the gradient so far.
+    pub(super) fn filter_sliders(
+        &mut self,
+        sys: &SolidSystem,
+        x: &[Vector3<f64>],
+        x0: &[Vector3<f64>],
+        mode: Mode,
+    ) {
         if sys.sliders.is_empty() {
             return;
         }
@@ -52,21 +86,49 @@ impl Integrator {
             if f == NONE {
                 continue;
             }
-            let f = 3 * f as usize;
-            let g = Vector3::new(self.grad[f], self.grad[f + 1], self.grad[f + 2]);
-            self.slide_proj[k] = match sys.rails[sl.rail as usize].closest(&x[v]) {
-                Some(on) => projector(&on, &g),
+            let f = f as usize;
+            let g = Vector3::new(self.grad[3 * f], self.grad[3 * f + 1], self.grad[3 * f + 2]);
+            let p = match place(&sys.rails, &sys.surfaces, sl.on, &x[v]) {
+                Some(pl) => projector(&pl, &g),
                 None => Matrix3::zeros(),
             };
-        }
-        for (k, sl) in sys.sliders.iter().enumerate() {
-            let f = self.free_of[sl.vertex as usize];
-            if f != NONE {
-                let f = f as usize;
-                self.slide_scale[k] = (0..3)
-                    .map(|c| self.values[self.diagonal_entry(f, c)])
-                    .sum::<f64>()
-                    / 3.0;
+            self.slide_proj[k] = p;
+            self.slide_scale[k] = (0..3)
+                .map(|c| self.values[self.diagonal_entry(f, c)])
+                .sum::<f64>()
+                / 3.0;
+            // The normal force the target supplies: the part of the gradient it takes. Held at
+            // a stop (P = 0), the vertex does not slide: no friction.
+            let held = p == Matrix3::zeros();
+            self.slide_normal[k] = if held { 0.0 } else { (g - p * g).norm() };
+            let (Mode::Dynamic { h }, true) = (mode, sl.friction > 0.0 && !held) else {
+                continue;
+            };
+            // μ N f₀(|u|), u = P (x − x⁰): gradient μN f₁/y u; Hessian
+            // μN [f₁/y (P − û ûᵀ) + f₁′ û ûᵀ], both terms PSD (f₁′ = 0 beyond ε).
+            let mu_n = sl.friction * self.slide_normal[k];
+            let eps = FRICTION_EPS_V * h;
+            let u = p * (x[v] - x0[v]);
+            let y = u.norm();
+            let (grad, hess) = if y == 0.0 {
+                (Vector3::zeros(), 2.0 / eps * p)
+            } else {
+                let (_, f1) = friction_f0_f1(y, eps);
+                let df1 = if y < eps {
+                    2.0 / eps * (1.0 - y / eps)
+                } else {
+                    0.0
+                };
+                let uh = u / y;
+                let uu = uh * uh.transpose();
+                (f1 / y * u, f1 / y * (p - uu) + df1 * uu)
+            };
+            for c in 0..3 {
+                self.grad[3 * f + c] += mu_n * grad[c];
+                let base = self.col_ptr[3 * f + c] + 3 * self.diag_slot[f] as usize;
+                for r in 0..3 {
+                    self.values[base + r] += mu_n * hess[(r, c)];
+                }
             }
         }
         let proj = |s: &Self, f: usize| {
@@ -127,7 +189,7 @@ impl Integrator {
 #[cfg(test)]
 mod tests {
     use crate::energy::RodStretch;
-    use crate::slide::{Rail, Slider};
+    use crate::slide::{Rail, SlideOn, Slider};
     use crate::{Integrator, Method, Settings, SolidSystem, State};
     use nalgebra::Vector3;
 
@@ -165,7 +227,18 @@ mod tests {
             k: 1e4,
         });
         sys.rails.push(rail.clone());
-        sys.sliders = vec![Slider { vertex: 0, rail: 0 }, Slider { vertex: 1, rail: 0 }];
+        sys.sliders = vec![
+            Slider {
+                vertex: 0,
+                on: SlideOn::Rail(0),
+                friction: 0.0,
+            },
+            Slider {
+                vertex: 1,
+                on: SlideOn::Rail(0),
+                friction: 0.0,
+            },
+        ];
         let mut s = State {
             x: vec![Vector3::zeros(), 0.01 * t],
             v: vec![Vector3::zeros(); 2],
@@ -194,7 +267,11 @@ mod tests {
         let mut sys = SolidSystem::new(vec![0.1]);
         sys.gravity = Vector3::new(0.0, -9.81, 0.0);
         sys.rails.push(rail);
-        sys.sliders.push(Slider { vertex: 0, rail: 0 });
+        sys.sliders.push(Slider {
+            vertex: 0,
+            on: SlideOn::Rail(0),
+            friction: 0.0,
+        });
         let mut s = State {
             x: vec![Vector3::new(0.0, 0.05, 0.0)], // off the rail: put on it first
             v: vec![Vector3::zeros()],
@@ -214,7 +291,11 @@ mod tests {
             x: vec![Vector3::zeros()],
             v: vec![Vector3::zeros()],
         };
-        sys.sliders.push(Slider { vertex: 0, rail: 0 });
+        sys.sliders.push(Slider {
+            vertex: 0,
+            on: SlideOn::Rail(0),
+            friction: 0.0,
+        });
         let e = sys.check(&s).unwrap_err().to_string();
         assert!(e.contains("rail 0, but there are 0 rails"), "{e}");
         sys.rails.push(Rail {
@@ -223,7 +304,11 @@ mod tests {
         let e = sys.check(&s).unwrap_err().to_string();
         assert!(e.contains("positive, finite length"), "{e}");
         sys.rails[0].points[1] = Vector3::x();
-        sys.sliders.push(Slider { vertex: 0, rail: 0 });
+        sys.sliders.push(Slider {
+            vertex: 0,
+            on: SlideOn::Rail(0),
+            friction: 0.0,
+        });
         let e = sys.check(&s).unwrap_err().to_string();
         assert!(e.contains("listed twice"), "{e}");
         sys.sliders.pop();
