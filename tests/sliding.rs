@@ -258,3 +258,109 @@ fn a_bead_on_a_circular_wire_swings_with_the_pendulum_period() {
         "period {period} s, want {want} s (crossings {crossings:?})"
     );
 }
+
+#[test]
+fn a_bead_on_a_wire_in_a_current_stays_on_the_wire_in_the_coupled_solver() {
+    // The same constraint through solver.coupled: a bead on a horizontal wire along x in
+    // water flowing at 0.15 m/s along it. The wire takes gravity, buoyancy and the transverse
+    // drag; along it, drag alone pulls the bead towards the current's speed, never past it.
+    let nodes = r#""wire": {"type": "geo.line", "params": {"start": [-1, 0.5, 0.2], "end": [1, 0.5, 0.2], "segments": 1}},
+        "line": {"type": "geo.line", "params": {"start": [0, 0.5, 0.2], "end": [0.01, 0.5, 0.2], "segments": 1}},
+        "bead": {"type": "convert.hair", "inputs": {"curves": "line.curves"}, "params": {"name": "bead"}},
+        "rod": {"type": "sec.rod", "inputs": {"element": "bead.element"}, "params": {"radius": 0.001}},
+        "drag": {"type": "sec.drag", "inputs": {"element": "rod.element"}, "params": {"diameter": 0.002}},
+        "slide": {"type": "convert.attachment", "inputs": {"target": "drag.element", "along": "wire.curves"},
+                  "params": {"name": "slide", "mode": "slide", "vertices": [0, 1]}},
+        "water": {"type": "convert.fluid_domain", "params": {"name": "water", "padding": 0.06, "cell_size": 0.02,
+                  "flow": [0.15, 0.0, 0.0], "x_min": "inflow", "x_max": "open"}},
+        "scene": {"type": "scene.gather", "inputs": {"elements": ["drag.element", "slide.element", "water.element"]}},
+        "material": {"type": "behavior.rod"},
+        "gravity": {"type": "behavior.gravity"},
+        "attach": {"type": "behavior.attachment"},
+        "fluid": {"type": "behavior.fluid_drag"},
+        "tree": {"type": "behavior.tree", "inputs": {"behaviors": ["material.behavior", "gravity.behavior", "attach.behavior", "fluid.behavior"]}},
+        "setup": {"type": "coupled.setup", "inputs": {"scene": "scene.scene", "tree": "tree.tree"}},
+        "solve": {"type": "solver.coupled", "inputs": {"scene": "scene.scene", "state": "setup.state", "iterate": "setup.state"},
+                  "params": {"solid.tolerance": 1.0e-9, "update.tolerance": 1.0e-6}},
+        "result": {"type": "coupled.scene", "inputs": {"state": "solve.state"}},
+        "v0": {"type": "scene.vertex", "inputs": {"scene": "result.scene"}, "params": {"element": "bead", "index": 0}},
+        "v1": {"type": "scene.vertex", "inputs": {"scene": "result.scene"}, "params": {"element": "bead", "index": 1}}"#;
+    let mut g = graph(&file(nodes, r#""v0": "v0.position", "v1": "v1.position""#));
+    let mut last = (0.0, 0.0);
+    for frame in 1..=12i64 {
+        let p = vec3_at(&mut g, "v0", frame);
+        let q = vec3_at(&mut g, "v1", frame);
+        for x in [p, q] {
+            // On the wire: y and z exactly where the wire is (the retraction's closest point
+            // on an axis-aligned segment keeps them bit for bit).
+            assert!(
+                (x[1] - 0.5).abs() < 1e-12 && (x[2] - 0.2).abs() < 1e-12,
+                "frame {frame}: {x:?}"
+            );
+        }
+        let v = (p[0] - last.0) * 24.0;
+        assert!(
+            v > last.1 && v < 0.15,
+            "frame {frame}: {v} m/s after {} m/s",
+            last.1
+        );
+        last = (p[0], v);
+    }
+}
+
+/// The error text of pulling `output` at frame 1.
+fn pull_error(g: &mut Graph, output: &str) -> String {
+    match g.pull(output, Context::new(1)) {
+        Ok(_) => panic!("'{output}' evaluated but should not have"),
+        Err(e) => e.to_string(),
+    }
+}
+
+#[test]
+fn bad_sliding_input_is_a_clear_error_naming_the_node() {
+    // mode slide with nothing to slide on: the node and the port.
+    let mut g = bead_on(
+        r#""t": {"type": "xform.animate"}"#,
+        r#""transform": "t.transform""#,
+        0.0,
+        [0.0; 3],
+        [0.01, 0.0, 0.0],
+        1,
+    );
+    let e = pull_error(&mut g, "v0");
+    assert!(
+        e.contains("'slide'") && e.contains("'along'") && e.contains("needs a rail or a surface"),
+        "{e}"
+    );
+    // A rail whose only segment has no length.
+    let rail = r#""rail": {"type": "geo.polyline", "params": {"points": [0, 0, 0, 0, 0, 0]}}"#;
+    let mut g = bead_on(
+        rail,
+        r#""along": "rail.curves""#,
+        0.0,
+        [0.0; 3],
+        [0.01, 0.0, 0.0],
+        1,
+    );
+    let e = pull_error(&mut g, "v0");
+    assert!(
+        e.contains("slide") && e.contains("segment of positive length"),
+        "{e}"
+    );
+    // Negative friction and bad rails are refused when the file loads.
+    let e = load_error(&file(
+        r#""a": {"type": "geo.arc", "params": {"axis": [0, 0, 1], "from": [0, 0, 2]}},
+           "b": {"type": "geo.arc", "params": {"start_angle": 10, "end_angle": 10}},
+           "c": {"type": "geo.polyline", "params": {"points": [0, 0, 0, 1]}},
+           "d": {"type": "convert.attachment", "params": {"mode": "slide", "friction": -1}}"#,
+        r#""a": "a.curves""#,
+    ));
+    for want in [
+        "line 1, column 50: error: node 'a': params: param 'from': must not be parallel to 'axis'",
+        "node 'b': params: param 'end_angle': the arc must turn by more than 0",
+        "node 'c': params: param 'points': needs x, y, z of two points or more (got 4 numbers)",
+        "node 'd': param 'friction': must be >= 0, got -1",
+    ] {
+        assert!(e.contains(want), "missing {want:?} in {e}");
+    }
+}

@@ -155,6 +155,10 @@ impl SurfaceMesh {
     /// distance, and one more search within that distance makes the answer exact. Ties go to
     /// the lowest triangle index (deterministic).
     fn closest(&self, p: &Vector3<f64>) -> Option<(usize, [f64; 3], Vector3<f64>)> {
+        // A non-finite point has no closest point (and would never end the search).
+        if !p.iter().all(|c| c.is_finite()) {
+            return None;
+        }
         thread_local! {
             static FOUND: RefCell<Vec<u32>> = const { RefCell::new(Vec::new()) };
         }
