@@ -4,7 +4,7 @@
 
 mod common;
 use common::*;
-use weft::graph::{Context, Graph};
+use weft::graph::Graph;
 
 /// Loads `graphs/NAME` with extra measuring nodes and outputs, and without the file outputs.
 fn instrumented(name: &str, nodes: serde_json::Value, outputs: serde_json::Value) -> Graph {
@@ -15,17 +15,6 @@ fn instrumented(name: &str, nodes: serde_json::Value, outputs: serde_json::Value
     }
     doc["outputs"] = outputs;
     graph(&doc.to_string())
-}
-
-fn vec3_at(g: &mut Graph, output: &str, frame: i64) -> [f64; 3] {
-    let v = g
-        .pull(output, Context::new(frame))
-        .unwrap_or_else(|e| panic!("{e}"));
-    *v.get::<[f64; 3]>().expect("a vec3 output")
-}
-
-fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
 #[test]

@@ -6,13 +6,6 @@ mod common;
 use common::*;
 use weft::graph::{Context, Graph};
 
-fn vec3_at(g: &mut Graph, output: &str, frame: i64) -> [f64; 3] {
-    let v = g
-        .pull(output, Context::new(frame))
-        .unwrap_or_else(|e| panic!("{e}"));
-    *v.get::<[f64; 3]>().expect("a vec3 output")
-}
-
 /// Distance from `p` to the polyline `points`.
 fn to_polyline(p: [f64; 3], points: &[[f64; 3]]) -> f64 {
     let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];

@@ -51,3 +51,16 @@ pub fn file(nodes: &str, outputs: &str) -> String {
         r#"{{"format": "weft-graph", "version": 1, "nodes": {{{nodes}}}, "outputs": {{{outputs}}}}}"#
     )
 }
+
+/// Vec3 output at a frame (fps 24).
+pub fn vec3_at(g: &mut Graph, output: &str, frame: i64) -> [f64; 3] {
+    let v = g
+        .pull(output, Context::new(frame))
+        .unwrap_or_else(|e| panic!("{e}"));
+    *v.get::<[f64; 3]>().expect("a vec3 output")
+}
+
+/// Distance between two points.
+pub fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}

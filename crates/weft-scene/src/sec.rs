@@ -296,6 +296,12 @@ pub enum AttachmentMode {
         /// μ ≥ 0.
         friction: f64,
     },
+    /// As one rigid body (free: to hold it as well, attach it hard), with this much mass
+    /// [kg] added, shared equally among the vertices (a button's, a bead's).
+    Rigid {
+        /// Added mass ≥ 0 [kg].
+        mass: f64,
+    },
 }
 
 /// Slide Rail: the curves a sliding attachment's vertices stay on (polylines, in the frame

@@ -500,6 +500,10 @@ impl Behavior for AttachmentBehavior {
                 )));
             };
             let n = scene[ti].vertex_count();
+            if let AttachmentMode::Rigid { mass } = att.mode {
+                rigid(scene, b, a, att, off, n, mass).map_err(fail)?;
+                continue;
+            }
             let targets = if let AttachmentMode::Slide { friction } = att.mode {
                 if !(friction >= 0.0 && friction.is_finite()) {
                     return Err(fail(format!("friction must be ≥ 0, got {friction}")));
@@ -530,22 +534,19 @@ impl Behavior for AttachmentBehavior {
                 let spring = match att.mode {
                     AttachmentMode::Slide { friction } => {
                         // Two attachments on one vertex: said here, with their names.
-                        if b.system.pinned[g]
-                            || b.system.sliders.iter().any(|s| s.vertex as usize == g)
-                        {
+                        if b.system.pinned[g] || constrained(b, g) {
                             return Err(fail(format!(
-                                "vertex {v} of '{}' is already held or sliding (another attachment lists it)",
+                                "vertex {v} of '{}' is already held, sliding or in a rigid group (another attachment lists it)",
                                 att.target
                             )));
                         }
                         crate::slide::slide(b, g, targets.clone(), friction, &att.target, v);
                         continue;
                     }
-                    AttachmentMode::Hard
-                        if b.system.sliders.iter().any(|s| s.vertex as usize == g) =>
-                    {
+                    AttachmentMode::Rigid { .. } => continue,
+                    AttachmentMode::Hard if constrained(b, g) => {
                         return Err(fail(format!(
-                            "vertex {v} of '{}' already slides on a rail (another attachment lists it)",
+                            "vertex {v} of '{}' already slides or is in a rigid group (another attachment lists it)",
                             att.target
                         )));
                     }
@@ -570,6 +571,70 @@ impl Behavior for AttachmentBehavior {
         }
         Ok(())
     }
+}
+
+/// Whether global vertex `g` already slides or is in a rigid group.
+fn constrained(b: &SystemBuilder, g: usize) -> bool {
+    b.system.sliders.iter().any(|s| s.vertex as usize == g)
+        || b.system
+            .rigid
+            .iter()
+            .any(|r| r.vertices.contains(&(g as u32)))
+}
+
+/// Rigid attachment `a`: its vertices of the target (first global vertex `off`, `n`
+/// vertices) become one rigid group, with `mass` added among them.
+fn rigid(
+    scene: &[SceneElement],
+    b: &mut SystemBuilder,
+    a: &SceneElement,
+    att: &Attachment,
+    off: u32,
+    n: usize,
+    mass: f64,
+) -> Result<(), String> {
+    if !(mass >= 0.0 && mass.is_finite()) {
+        return Err(format!("mass must be ≥ 0, got {mass}"));
+    }
+    let mut vertices = att.vertices.clone();
+    vertices.sort_unstable();
+    vertices.dedup();
+    if vertices.len() < 2 {
+        return Err(format!(
+            "a rigid group needs two or more vertices, got {}",
+            vertices.len()
+        ));
+    }
+    let mut group = Vec::with_capacity(vertices.len());
+    for &v in &vertices {
+        if v as usize >= n {
+            return Err(format!(
+                "vertex {v} is out of range (element '{}' has {n} vertices)",
+                att.target
+            ));
+        }
+        let g = v + off;
+        if b.system.pinned[g as usize] || constrained(b, g as usize) {
+            return Err(format!(
+                "vertex {v} of '{}' is already held, sliding or in a rigid group (another attachment lists it)",
+                att.target
+            ));
+        }
+        group.push(g);
+    }
+    for &g in &group {
+        b.add_mass(g as usize, mass / group.len() as f64);
+    }
+    b.system
+        .rigid
+        .push(weft_solid::RigidGroup { vertices: group });
+    if scene.iter().any(|e| e.kind == ElementKind::Collision) {
+        b.warn(format!(
+            "rigid attachment '{}': its vertices take no contacts yet (they pass through colliders and other solids)",
+            a.name
+        ));
+    }
+    Ok(())
 }
 
 /// The clamps of attachment `ai` on element `ti` (first global vertex `off`): a

@@ -21,12 +21,13 @@
 
 mod contacts;
 mod correction;
+mod rigid;
 mod sliding;
 mod solve;
 
 use crate::energy::Local;
 pub use crate::settings::{Method, Settings, StepError, StepStats, StopCheck};
-use crate::system::{SolidSystem, State};
+use crate::system::{SolidSystem, State, SystemError};
 pub use contacts::{CONTACT_VERTICES, Contact, ContactSet, ContactStats};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::SupernodalThreshold;
@@ -37,7 +38,7 @@ use faer::sparse::linalg::cholesky::{
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 use std::cell::RefCell;
 use std::time::Instant;
@@ -150,6 +151,8 @@ pub struct Integrator {
     /// Blocks beyond the elements' (free index pairs, sorted, lower first): the last
     /// contacts' between vertices that share no element.
     extra: Vec<(u32, u32)>,
+    /// Rigid groups: their nodes, members and Jacobians' data (`rigid.rs`).
+    groups: rigid::Groups,
     /// Per free vertex: its slider's index in the system, or NONE (`sliding.rs`).
     slide_of: Vec<u32>,
     /// Per slider: its projector at the last assembly, and its diagonal's mean before it.
@@ -232,24 +235,56 @@ impl Integrator {
         }
         let n = sys.mass.len();
         let mut free_of = vec![NONE; n];
+        let member = {
+            let mut m = vec![false; n];
+            for g in &sys.rigid {
+                for &v in &g.vertices {
+                    if let Some(s) = m.get_mut(v as usize) {
+                        *s = true;
+                    }
+                }
+            }
+            m
+        };
         let mut n_free = 0usize;
         for (i, f) in free_of.iter_mut().enumerate() {
-            if !sys.pinned.get(i).copied().unwrap_or(false) {
+            if !sys.pinned.get(i).copied().unwrap_or(false) && !member[i] {
                 *f = n_free as u32;
                 n_free += 1;
             }
         }
-        // Block neighbours of each free vertex (itself included), sorted.
+        // Rigid groups: two nodes each after the free vertices (`rigid.rs`).
+        let mut groups = rigid::Groups::new(sys, &mut free_of, n_free);
+        n_free += 2 * sys.rigid.len();
+        // The nodes a vertex moves with: its own, its group's two, or none.
+        let nodes_of = |v: u32| -> ([u32; 2], usize) {
+            let f = free_of.get(v as usize).copied().unwrap_or(NONE);
+            if f != NONE {
+                return ([f, NONE], 1);
+            }
+            match groups.of.get(v as usize) {
+                Some(&g) if g != NONE => {
+                    let t = groups.node[g as usize];
+                    ([t, t + 1], 2)
+                }
+                _ => ([NONE; 2], 0),
+            }
+        };
+        // Block neighbours of each node (itself included), sorted.
         let mut nbrs: Vec<Vec<u32>> = (0..n_free as u32).map(|j| vec![j]).collect();
+        for &t in &groups.node {
+            nbrs[t as usize].push(t + 1);
+            nbrs[t as usize + 1].push(t);
+        }
         sys.elements.for_each(|e| {
             for &a in e.vertices() {
+                let (na, ka) = nodes_of(a);
                 for &b in e.vertices() {
-                    let (fa, fb) = (
-                        free_of.get(a as usize).copied().unwrap_or(NONE),
-                        free_of.get(b as usize).copied().unwrap_or(NONE),
-                    );
-                    if fa != NONE && fb != NONE {
-                        nbrs[fb as usize].push(fa);
+                    let (nb, kb) = nodes_of(b);
+                    for &fa in &na[..ka] {
+                        for &fb in &nb[..kb] {
+                            nbrs[fb as usize].push(fa);
+                        }
                     }
                 }
             }
@@ -280,16 +315,24 @@ impl Integrator {
         }
         let mut slots = Vec::new();
         let mut slot_offset = Vec::with_capacity(sys.elements.len());
+        let mut ei = 0u32;
         sys.elements.for_each(|e| {
             slot_offset.push(slots.len());
             let v = e.vertices();
+            let grouped = v
+                .iter()
+                .any(|&a| groups.of.get(a as usize).is_some_and(|&g| g != NONE));
+            if grouped {
+                groups.elements.push(ei);
+            }
+            ei += 1;
             for &b in v {
                 for &a in v {
                     let (fa, fb) = (
                         free_of.get(a as usize).copied().unwrap_or(NONE),
                         free_of.get(b as usize).copied().unwrap_or(NONE),
                     );
-                    slots.push(if fa != NONE && fb != NONE {
+                    slots.push(if fa != NONE && fb != NONE && !grouped {
                         nbrs[fb as usize]
                             .binary_search(&fa)
                             .expect("pattern holds every pair") as u32
@@ -417,6 +460,9 @@ impl Integrator {
         let mut colors: Vec<Vec<u32>> = Vec::new();
         let mut serial = Vec::new();
         for ei in 0..sys.elements.len() {
+            if groups.elements.binary_search(&(ei as u32)).is_ok() {
+                continue;
+            }
             let free: Vec<usize> = sys
                 .elements
                 .get(ei)
@@ -484,6 +530,7 @@ impl Integrator {
             stop: None,
             max_bytes,
             extra,
+            groups,
             slide_of: Vec::new(),
             slide_proj: Vec::new(),
             slide_scale: Vec::new(),
@@ -497,6 +544,11 @@ impl Integrator {
     /// Nonzeros stored in the system matrix (both triangles).
     pub fn nonzeros(&self) -> usize {
         self.row_idx.len()
+    }
+
+    /// Whether vertex `i` is held (pinned): neither free nor in a rigid group.
+    fn held(&self, i: usize) -> bool {
+        self.free_of[i] == NONE && self.groups.of.get(i).is_none_or(|&g| g == NONE)
     }
 
     /// Free (unpinned) vertices.
@@ -513,7 +565,7 @@ impl Integrator {
     ) -> f64 {
         let mut e = 0.0;
         for i in 0..self.n {
-            if self.free_of[i] != NONE {
+            if !self.held(i) {
                 let m = sys.mass[i];
                 e += match mode {
                     Mode::Dynamic { h } => {
@@ -570,6 +622,9 @@ impl Integrator {
         self.grad.iter_mut().for_each(|g| *g = 0.0);
         self.values.iter_mut().for_each(|v| *v = 0.0);
         self.force_scale = 0.0;
+        if !self.groups.is_empty() {
+            self.assemble_members(sys, x, x0, mode);
+        }
         for i in 0..self.n {
             let f = self.free_of[i];
             if f == NONE {
@@ -638,17 +693,75 @@ impl Integrator {
                 color.iter().for_each(work);
             }
         }
+        drop(per);
+        if !self.groups.is_empty() {
+            // Elements with a member: through the groups' Jacobians, in element order.
+            for k in 0..self.groups.elements.len() {
+                let ei = self.groups.elements[k] as usize;
+                let el = sys.elements.get(ei);
+                let mut local = std::mem::take(&mut self.local);
+                match hessians {
+                    Hessians::Projected => el.eval(x, true, &mut local),
+                    Hessians::First => el.eval_first(x, &mut local),
+                }
+                let k3 = 3 * el.vertices().len();
+                self.per_element.borrow_mut()[ei] =
+                    local.grad[..k3].iter().map(|g| g.abs()).sum::<f64>();
+                self.add_element_through_groups(el.vertices(), &local);
+                self.local = local;
+            }
+            self.finish_groups(hessians);
+        }
+        let per = self.per_element.borrow();
         self.force_scale = per.iter().fold(self.force_scale, |a, b| a + b);
         drop(per);
         self.filter_sliders(sys, x, x0, mode);
+    }
+
+    /// The rigid groups' members' own terms (inertia, damping, drag, or the static loads),
+    /// through their groups' Jacobians at `x` (`rigid.rs`).
+    fn assemble_members(
+        &mut self,
+        sys: &SolidSystem,
+        x: &[Vector3<f64>],
+        x0: &[Vector3<f64>],
+        mode: Mode,
+    ) {
+        self.groups.centers(sys, x);
+        for g in 0..self.groups.members.len() {
+            for k in 0..self.groups.members[g].len() {
+                let i = self.groups.members[g][k] as usize;
+                let m = sys.mass[i];
+                let (mut g, mut hess) = match mode {
+                    Mode::Dynamic { h } => {
+                        let (a, b) = (m / (h * h), sys.damping(i) * m / h);
+                        (
+                            a * (x[i] - self.x_hat[i]) + b * (x[i] - x0[i]),
+                            (a + b) * Matrix3::identity(),
+                        )
+                    }
+                    Mode::Static => (-(m * sys.gravity + sys.force(i)), Matrix3::zeros()),
+                };
+                if let (Mode::Dynamic { h }, Some(d)) = (mode, sys.drag(i)) {
+                    g += d.matrix * ((x[i] - x0[i]) / h - d.flow);
+                    hess += d.matrix / h;
+                }
+                self.force_scale += g.abs().sum();
+                self.add_member_terms(i, &g, &hess);
+            }
+        }
     }
 
     fn shift_diagonal(&mut self, mu: f64) {
         self.add_to_diagonal(|_| mu);
     }
 
-    /// Adds `mu(i)` to the three diagonal entries of every free vertex i.
+    /// Adds `mu(i)` to the three diagonal entries of every free vertex i (and through J to
+    /// the rigid groups' nodes).
     fn add_to_diagonal(&mut self, mu: impl Fn(usize) -> f64) {
+        if !self.groups.is_empty() {
+            self.add_to_group_diagonals(&mu);
+        }
         for i in 0..self.n {
             let f = self.free_of[i];
             if f == NONE {
@@ -679,6 +792,13 @@ impl Integrator {
 
     /// ‖dir‖∞ · `scale` (the residual the tolerance is compared with).
     fn direction_size(&self, scale: f64) -> f64 {
+        if !self.groups.is_empty() {
+            // A group's rotation node is in radians: its members' displacements count.
+            let free = self.dir[..3 * self.groups.first]
+                .iter()
+                .fold(0.0f64, |m, d| m.max(d.abs()));
+            return free.max(self.member_step_size(&self.dir)) * scale;
+        }
         self.dir.iter().fold(0.0f64, |m, d| m.max(d.abs())) * scale
     }
 
@@ -917,15 +1037,21 @@ impl Integrator {
         let x0 = state.x.clone();
         let target = |i: usize| pinned_to.map_or(x0[i], |p| p[i]);
         if settings.method == Method::Explicit {
+            if !sys.rigid.is_empty() {
+                return Err(StepError::System(SystemError::BadRigid {
+                    group: 0,
+                    reason: "explicit steps cannot keep a group rigid: use method newton, linearized or static".into(),
+                }));
+            }
             return self.explicit(sys, state, &x0, &target, h);
         }
         let mut x = state.x.clone();
         if settings.method == Method::Static {
-            for i in (0..self.n).filter(|&i| self.free_of[i] == NONE) {
+            for i in (0..self.n).filter(|&i| self.held(i)) {
                 x[i] = target(i);
             }
             if let Some(g) = guess {
-                for i in (0..self.n).filter(|&i| self.free_of[i] != NONE) {
+                for i in (0..self.n).filter(|&i| !self.held(i)) {
                     x[i] = g[i];
                 }
             }
@@ -957,7 +1083,7 @@ impl Integrator {
     ) {
         let x0 = &state.x;
         for i in 0..self.n {
-            if self.free_of[i] == NONE {
+            if self.held(i) {
                 x[i] = target(i);
                 self.x_hat[i] = x[i];
             } else {
@@ -965,6 +1091,20 @@ impl Integrator {
                 self.x_hat[i] =
                     x0[i] + h * state.v[i] + h * h * (sys.gravity + sys.force(i) / sys.mass[i]);
                 x[i] = guess.map_or(x0[i] + h * state.v[i], |g| g[i]);
+            }
+        }
+        if guess.is_none() {
+            // A rigid group's first guess moves it rigidly: by its centroid's velocity.
+            for g in &sys.rigid {
+                let (mut p, mut w) = (Vector3::zeros(), 0.0);
+                for &v in &g.vertices {
+                    p += sys.mass[v as usize] * state.v[v as usize];
+                    w += sys.mass[v as usize];
+                }
+                let vc = p / w;
+                for &v in &g.vertices {
+                    x[v as usize] = x0[v as usize] + h * vc;
+                }
             }
         }
         self.retract(sys, x);
@@ -1106,6 +1246,7 @@ impl Integrator {
                     };
                 }
                 let mut trial = std::mem::take(&mut self.x_trial);
+                self.move_members(&self.dir, alpha, &mut trial);
                 self.retract(sys, &mut trial);
                 self.x_trial = trial;
                 if linearized || done {

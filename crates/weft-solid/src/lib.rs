@@ -22,4 +22,4 @@ pub mod verify;
 
 pub use integrator::{Integrator, Method, Settings, StepError, StepStats, StopCheck};
 pub use slide::{OnSurface, Rail, SlideOn, Slider, Surface};
-pub use system::{Elements, SolidSystem, State, SystemError, VertexDrag};
+pub use system::{Elements, RigidGroup, SolidSystem, State, SystemError, VertexDrag};

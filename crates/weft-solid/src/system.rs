@@ -114,6 +114,17 @@ pub struct SolidSystem {
     pub surfaces: Vec<Arc<dyn Surface>>,
     /// Sliding vertices ([`crate::slide`]): each stays on its rail, free along it.
     pub sliders: Vec<Slider>,
+    /// Rigid groups: each group's vertices move as one rigid body (six degrees of freedom in
+    /// the Newton system, `integrator/rigid.rs`).
+    pub rigid: Vec<RigidGroup>,
+}
+
+/// Vertices that move as one rigid body (a button, a clasp, a bead): their distances stay
+/// those they start with.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RigidGroup {
+    /// The vertices (global indices), two or more, none held, sliding or in another group.
+    pub vertices: Vec<u32>,
 }
 
 /// Linear drag on one vertex: force −D (v − u).
@@ -149,6 +160,7 @@ impl SolidSystem {
             rails: Vec::new(),
             surfaces: Vec::new(),
             sliders: Vec::new(),
+            rigid: Vec::new(),
         }
     }
     /// Damping coefficient of vertex `i` [1/s] (zero when none are set).
@@ -221,6 +233,17 @@ pub enum SystemError {
         /// What is wrong.
         reason: String,
     },
+    /// A rigid group that cannot move as one: too few vertices, one out of range, held,
+    /// sliding or in two groups; or a step method that cannot keep it rigid.
+    ///
+    /// Rigid group 1: vertex 8 is also held in place.
+    #[error("rigid group {group}: {reason}")]
+    BadRigid {
+        /// The group's index.
+        group: usize,
+        /// What is wrong.
+        reason: String,
+    },
     /// A position or velocity is NaN or infinite.
     ///
     /// Vertex 7's rest position is NaN.
@@ -287,6 +310,31 @@ impl SolidSystem {
         });
         if let Some(vertex) = bad {
             return Err(SystemError::VertexOutOfRange { vertex, n });
+        }
+        let mut grouped = vec![false; n];
+        for (group, g) in self.rigid.iter().enumerate() {
+            let fail = |reason: String| Err(SystemError::BadRigid { group, reason });
+            if g.vertices.len() < 2 {
+                return fail(format!(
+                    "it has {} vertices; a rigid group needs two or more",
+                    g.vertices.len()
+                ));
+            }
+            for &v in &g.vertices {
+                let v = v as usize;
+                if v >= n {
+                    return fail(format!("vertex {v} is out of range ({n} vertices)"));
+                }
+                if self.pinned[v] {
+                    return fail(format!("vertex {v} is also held in place"));
+                }
+                if self.sliders.iter().any(|s| s.vertex as usize == v) {
+                    return fail(format!("vertex {v} also slides on a target"));
+                }
+                if std::mem::replace(&mut grouped[v], true) {
+                    return fail(format!("vertex {v} is in it twice, or in another group"));
+                }
+            }
         }
         let mut sliding = vec![false; n];
         for sl in &self.sliders {

@@ -285,7 +285,8 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             .param(ParamSpec::floats("vertices", &[]).doc("vertex indices (select = vertices)"))
             .param(ParamSpec::int("root_vertices", 2).ge(1.0).le(16.0).doc("vertices per curve root: 1 holds the root vertex and lets the strand turn about it; k >= 2 holds the first k - 1 and clamps the strand's direction at the last of them (2: a strand clamped at its root, bending over its whole length)"))
             .param(ParamSpec::bool("clamp", false).doc("select = vertices: also hold the direction the element leaves them in, as it starts and turned with the transform (cloth: its tangent plane along every border edge whose two vertices are listed, so one listed row is a clamped edge, not a hinge; strands: where the free strand leaves a listed vertex)"))
-            .param(ParamSpec::choice("mode", &["hard", "spring", "slide"], "hard").doc("hard: exactly; spring: a zero-length spring; slide: on the rails ('along') or the surface ('onto'), free along them, exactly"))
+            .param(ParamSpec::choice("mode", &["hard", "spring", "slide", "rigid"], "hard").doc("hard: exactly; spring: a zero-length spring; slide: on the rails ('along') or the surface ('onto'), free along them, exactly; rigid: the listed vertices move as one rigid body, free (a button, a bead), their distances kept exactly; to weld a group to an animated transform, attach its vertices hard instead"))
+            .param(ParamSpec::float("mass", 0.0).ge(0.0).unit("kg").doc("mode = rigid: mass added to the group, shared equally among its vertices (a button's)"))
             .param(ParamSpec::float("friction", 0.0).ge(0.0).doc("mode = slide: Coulomb friction coefficient μ along the rail or surface (0: frictionless)"))
             .param(ParamSpec::float("stiffness", 1e3).gt(0.0).unit("N/m").doc("spring stiffness (mode = spring)")),
         |p| {
@@ -303,6 +304,9 @@ fn attachment(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
         "spring" => AttachmentMode::Spring(p.f64("stiffness")?),
         "slide" => AttachmentMode::Slide {
             friction: p.f64("friction")?,
+        },
+        "rigid" => AttachmentMode::Rigid {
+            mass: p.f64("mass")?,
         },
         _ => AttachmentMode::Hard,
     };

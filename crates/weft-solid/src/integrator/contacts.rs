@@ -516,6 +516,7 @@ impl Integrator {
                         p + alpha * Vector3::new(delta[f], delta[f + 1], delta[f + 2])
                     };
                 }
+                self.move_members(&delta, alpha, &mut trial);
                 self.retract(sys, &mut trial);
                 let unresolvable = -slope * alpha <= 64.0 * f64::EPSILON * self.force_scale * xmax;
                 if phi(self, &trial) <= e0 + 1e-4 * alpha * slope || unresolvable || alpha < 1e-10 {
@@ -550,7 +551,14 @@ impl Integrator {
                 alpha *= 0.5;
                 stats.halvings += 1;
             }
-            let step = alpha * delta.iter().fold(0.0f64, |m, d| m.max(d.abs())) / h;
+            let step = if self.groups.is_empty() {
+                alpha * delta.iter().fold(0.0f64, |m, d| m.max(d.abs())) / h
+            } else {
+                let free = delta[..3 * self.groups.first]
+                    .iter()
+                    .fold(0.0f64, |m, d| m.max(d.abs()));
+                alpha * free.max(self.member_step_size(&delta)) / h
+            };
             x = trial;
             stats.iterations = it + 1;
             stats.residuals.push(step);
