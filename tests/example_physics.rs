@@ -280,3 +280,43 @@ fn curtain_rail_slides_along_its_rail_and_follows_the_drawn_corner() {
     // The push swings the curtain out of its plane about the rail.
     assert!(swung > 0.05, "swung {swung} m");
 }
+
+/// buttoned_panel: each button's four vertices keep their distances (1e-9 relative, the
+/// issue's bound) while the panel swings out of its plane, the hanger row is exactly in
+/// place, and the wrapped render mesh's vertex on the bottom button's corner is that vertex.
+#[test]
+fn buttoned_panel_keeps_its_buttons_rigid_and_wraps_its_render_mesh() {
+    let vertex = |element: &str, i: u32| {
+        serde_json::json!({"type": "scene.vertex", "inputs": {"scene": "wrap.scene"},
+                           "params": {"element": element, "index": i}})
+    };
+    // Bottom button: panel vertices 58, 59, 71, 72 (columns 6–7, rows 4–5 of 13 × 17);
+    // render vertex (12, 8) of 25 × 33 = 212 sits on panel vertex (6, 4) = 58.
+    let mut g = instrumented(
+        "buttoned_panel.json",
+        serde_json::json!({"p58": vertex("panel", 58), "p59": vertex("panel", 59),
+                           "p71": vertex("panel", 71), "p72": vertex("panel", 72),
+                           "hang": vertex("panel", 214), "r212": vertex("render", 212)}),
+        serde_json::json!({"p58": "p58.position", "p59": "p59.position", "p71": "p71.position",
+                           "p72": "p72.position", "hang": "hang.position", "r212": "r212.position",
+                           "center": "center.centroid"}),
+    );
+    let names = ["p58", "p59", "p71", "p72"];
+    let at = |g: &mut Graph, f: i64| names.map(|n| vec3_at(g, n, f));
+    let start = at(&mut g, 0);
+    let hang0 = vec3_at(&mut g, "hang", 0);
+    let mut swing = 0.0f64;
+    for frame in 1..=24 {
+        let now = at(&mut g, frame);
+        for a in 0..4 {
+            for b in a + 1..4 {
+                let (d, d0) = (dist(now[a], now[b]), dist(start[a], start[b]));
+                assert!((d / d0 - 1.0).abs() < 1e-9, "frame {frame}: {d} vs {d0}");
+            }
+        }
+        assert_eq!(vec3_at(&mut g, "hang", frame), hang0);
+        assert_eq!(vec3_at(&mut g, "r212", frame), now[0]);
+        swing = swing.max(vec3_at(&mut g, "center", frame)[2].abs());
+    }
+    assert!(swing > 0.03, "swung {swing} m");
+}

@@ -23,6 +23,9 @@ pub enum ElementKind {
     FluidDomain,
     /// A data-less element carrying Collision Group and Collision Response SECs.
     Collision,
+    /// Geometry made from simulated elements for output (a wrapped render mesh): written and
+    /// shown, never simulated.
+    Render,
 }
 
 impl ElementKind {
@@ -35,6 +38,7 @@ impl ElementKind {
             ElementKind::Collider => "collider",
             ElementKind::FluidDomain => "fluid_domain",
             ElementKind::Collision => "collision",
+            ElementKind::Render => "render",
         }
     }
 }

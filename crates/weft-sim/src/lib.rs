@@ -24,6 +24,7 @@ mod relaxation;
 mod slide;
 mod stepper;
 pub mod verify;
+mod wrap;
 
 pub use behavior::{
     AttachmentBehavior, Behavior, BehaviorTree, Damping, DiscreteShellMaterial, FluidDrag, Gravity,
@@ -45,3 +46,4 @@ pub use fluid::FluidSpec;
 pub use relaxation::{Relaxation, RelaxationMethod, fluid_change, relax, velocity_change};
 pub use slide::{SurfaceMesh, TargetPin};
 pub use stepper::{FrameStats, Scheme, SimState, SolidStepper, StepperSettings};
+pub use wrap::Wrap;

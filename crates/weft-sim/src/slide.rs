@@ -154,7 +154,7 @@ impl SurfaceMesh {
     /// point. Searches boxes growing from a small one; the first triangle found bounds the
     /// distance, and one more search within that distance makes the answer exact. Ties go to
     /// the lowest triangle index (deterministic).
-    fn closest(&self, p: &Vector3<f64>) -> Option<(usize, [f64; 3], Vector3<f64>)> {
+    pub(crate) fn closest(&self, p: &Vector3<f64>) -> Option<(usize, [f64; 3], Vector3<f64>)> {
         // A non-finite point has no closest point (and would never end the search).
         if !p.iter().all(|c| c.is_finite()) {
             return None;

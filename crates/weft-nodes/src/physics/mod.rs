@@ -12,6 +12,7 @@ mod output;
 mod secs;
 mod solver;
 mod types;
+mod wrap;
 mod xform;
 
 pub use coupled::CoupledState;
@@ -27,6 +28,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
     behaviors::register(r)?;
     xform::register(r)?;
     measure::register(r)?;
+    wrap::register(r)?;
     coupled_nodes::register(r)?;
     output::register(r)?;
     solver::register(r)

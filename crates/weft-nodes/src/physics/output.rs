@@ -110,6 +110,8 @@ fn color(kind: ElementKind) -> [u8; 3] {
     match kind {
         ElementKind::Cloth => [214, 120, 66],
         ElementKind::Hair => [96, 62, 36],
+        // A wrapped render mesh stands for the cloth it follows, in a lighter tone.
+        ElementKind::Render => [226, 160, 110],
         _ => [170, 172, 178],
     }
 }
