@@ -98,27 +98,16 @@ mod tests {
     use super::*;
     use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 
-    /// An n × n grid of spacing `a` in z = 0, alternating diagonals.
+    /// An n × n grid of spacing `a` in y = 0 (`weft_scene::procedural::grid`).
     fn grid(n: usize, a: f64) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
-        let mut p = Vec::new();
-        for j in 0..n {
-            for i in 0..n {
-                p.push([i as f64 * a, j as f64 * a, 0.0]);
-            }
-        }
-        let id = |i: usize, j: usize| (j * n + i) as u32;
-        let mut t = Vec::new();
-        for j in 0..n - 1 {
-            for i in 0..n - 1 {
-                let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
-                if (i + j) % 2 == 0 {
-                    t.extend([[a, b, c], [a, c, d]]);
-                } else {
-                    t.extend([[a, b, d], [b, c, d]]);
-                }
-            }
-        }
-        (p, t)
+        let size = a * (n - 1) as f64;
+        let m = weft_scene::procedural::grid(
+            [size; 2],
+            [n; 2],
+            weft_scene::procedural::Plane::Xz,
+            [0.0; 3],
+        );
+        (m.positions, m.triangles)
     }
 
     #[test]
@@ -127,7 +116,7 @@ mod tests {
         // A finer render mesh, lifted off the proxy and wavy (offsets of both signs).
         let (mut render, _) = grid(17, 0.025);
         for (k, p) in render.iter_mut().enumerate() {
-            p[2] = 0.004 * ((k as f64) * 0.7).sin();
+            p[1] = 0.004 * ((k as f64) * 0.7).sin();
         }
         let w = Wrap::bind(&proxy, &tris, &render).unwrap();
         let m = Isometry3::from_parts(
