@@ -76,3 +76,52 @@ fn a_wrap_without_its_proxy_or_under_a_taken_name_is_a_clear_error() {
         .to_string();
     assert!(e.contains("already has an element 'cloth'"), "{e}");
 }
+
+#[test]
+fn render_hairs_follow_their_simulated_guides() {
+    // 16 guide strands on a head-like sphere fall under gravity from straight out; 64 render
+    // hairs grown the same way are interpolated from them. The guides' roots are held, so
+    // every render root stays where it is (its three guide points there do not move: to
+    // rounding), while the render tips swing with the guides; at the start frame the render
+    // hairs are their own rest shape.
+    let strands = |count: u32| {
+        format!(
+            r#"{{"type": "geo.strands", "params": {{"center": [0, 1, 0], "radius": 0.1, "count": {count}, "segments": 8, "length": 0.2, "cap_degrees": 80}}}}"#
+        )
+    };
+    let nodes = format!(
+        r#""guides": {}, "dense": {},
+        "hair": {{"type": "convert.hair", "inputs": {{"curves": "guides.curves"}}, "params": {{"name": "hair"}}}},
+        "roots": {{"type": "convert.attachment", "inputs": {{"target": "hair.element"}}, "params": {{"name": "roots", "select": "curve_roots", "root_vertices": 2}}}},
+        "material": {{"type": "behavior.rod"}},
+        "gravity": {{"type": "behavior.gravity"}},
+        "attach": {{"type": "behavior.attachment"}},
+        "tree": {{"type": "behavior.tree", "inputs": {{"behaviors": ["material.behavior", "gravity.behavior", "attach.behavior"]}}}},
+        "solve": {{"type": "solver.solid", "inputs": {{"elements": ["hair.element", "roots.element"], "tree": "tree.tree"}}, "params": {{"substeps": 2, "tolerance": 1e-4}}}},
+        "interp": {{"type": "scene.interpolate_hair", "inputs": {{"scene": "solve.scene", "render": "dense.curves"}}, "params": {{"guides": "hair", "name": "fur"}}}},
+        "root": {{"type": "scene.vertex", "inputs": {{"scene": "interp.scene"}}, "params": {{"element": "fur", "index": 90}}}},
+        "tip": {{"type": "scene.vertex", "inputs": {{"scene": "interp.scene"}}, "params": {{"element": "fur", "index": 98}}}},
+        "dense_el": {{"type": "convert.hair", "inputs": {{"curves": "dense.curves"}}, "params": {{"name": "dense"}}}},
+        "dscene": {{"type": "scene.gather", "inputs": {{"elements": ["dense_el.element"]}}}},
+        "tip_rest": {{"type": "scene.vertex", "inputs": {{"scene": "dscene.scene"}}, "params": {{"element": "dense", "index": 98}}}}"#,
+        strands(16),
+        strands(64)
+    );
+    let mut g = graph(&file(
+        &nodes,
+        r#""root": "root.position", "tip": "tip.position", "tip_rest": "tip_rest.position""#,
+    ));
+    // Render strand 10 is vertices 90..=98; at the start it is its rest shape.
+    let (root0, tip0) = (vec3_at(&mut g, "root", 0), vec3_at(&mut g, "tip", 0));
+    assert!(dist(tip0, vec3_at(&mut g, "tip_rest", 0)) < 1e-15);
+    for frame in [6i64, 12] {
+        assert!(
+            dist(vec3_at(&mut g, "root", frame), root0) < 1e-12,
+            "frame {frame}"
+        );
+    }
+    assert!(
+        dist(vec3_at(&mut g, "tip", 12), tip0) > 0.01,
+        "the render tip did not move"
+    );
+}

@@ -46,4 +46,4 @@ pub use fluid::FluidSpec;
 pub use relaxation::{Relaxation, RelaxationMethod, fluid_change, relax, velocity_change};
 pub use slide::{SurfaceMesh, TargetPin};
 pub use stepper::{FrameStats, Scheme, SimState, SolidStepper, StepperSettings};
-pub use wrap::Wrap;
+pub use wrap::{HairWrap, Wrap};
