@@ -126,3 +126,26 @@ fn a_button_on_a_swinging_cloth_keeps_its_shape() {
     }
     assert!(fell > 0.2, "the button fell {fell} m");
 }
+
+#[test]
+fn bdf2_with_a_rigid_group_is_refused_with_a_reason() {
+    let nodes = r#""line": {"type": "geo.line", "params": {"start": [0, 1, 0], "end": [0, 0, 0], "segments": 4}},
+        "strand": {"type": "convert.hair", "inputs": {"curves": "line.curves"}, "params": {"name": "strand"}},
+        "top": {"type": "convert.attachment", "inputs": {"target": "strand.element"}, "params": {"name": "top", "vertices": [0]}},
+        "bead": {"type": "convert.attachment", "inputs": {"target": "strand.element"}, "params": {"name": "bead", "mode": "rigid", "vertices": [3, 4]}},
+        "material": {"type": "behavior.rod"},
+        "gravity": {"type": "behavior.gravity"},
+        "attach": {"type": "behavior.attachment"},
+        "tree": {"type": "behavior.tree", "inputs": {"behaviors": ["material.behavior", "gravity.behavior", "attach.behavior"]}},
+        "solve": {"type": "solver.solid", "inputs": {"elements": ["strand.element", "top.element", "bead.element"], "tree": "tree.tree"},
+                  "params": {"integrator": "bdf2"}}"#;
+    let mut g = graph(&file(nodes, r#""scene": "solve.scene""#));
+    let e = g
+        .pull("scene", weft::graph::Context::new(1))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("'solve'") && e.contains("bdf2 does not keep rigid attachments rigid"),
+        "{e}"
+    );
+}

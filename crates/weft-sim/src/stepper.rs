@@ -288,6 +288,13 @@ impl SolidStepper {
             let max_admm = self.settings.contact_iterations;
             self.contacts = Contacts::new(self.compiled.clone(), scene, max_admm);
         }
+        if !self.compiled.system.rigid.is_empty() && self.settings.scheme == Scheme::Bdf2 {
+            return Err(SimError::Unsupported(
+                "integrator bdf2 does not keep rigid attachments rigid yet (its blended start \
+                 state is not a rigid placement): use integrator euler for this scene"
+                    .into(),
+            ));
+        }
         if self.contacts.is_some() && self.settings.scheme == Scheme::Bdf2 {
             return Err(SimError::Unsupported(
                 "integrator bdf2 does not step contacts yet (their detection and solve are \
