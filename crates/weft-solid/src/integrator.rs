@@ -696,10 +696,12 @@ impl Integrator {
         drop(per);
         if !self.groups.is_empty() {
             // Elements with a member: through the groups' Jacobians, in element order.
+            // The scratch moves out by its box (a `Local` is 73 kB: moving it by value per
+            // element cost more than the element).
+            let mut local = self.groups.local.take().unwrap_or_default();
             for k in 0..self.groups.elements.len() {
                 let ei = self.groups.elements[k] as usize;
                 let el = sys.elements.get(ei);
-                let mut local = std::mem::take(&mut self.local);
                 match hessians {
                     Hessians::Projected => el.eval(x, true, &mut local),
                     Hessians::First => el.eval_first(x, &mut local),
@@ -708,8 +710,8 @@ impl Integrator {
                 self.per_element.borrow_mut()[ei] =
                     local.grad[..k3].iter().map(|g| g.abs()).sum::<f64>();
                 self.add_element_through_groups(el.vertices(), &local);
-                self.local = local;
             }
+            self.groups.local = Some(local);
             self.finish_groups(hessians);
         }
         let per = self.per_element.borrow();

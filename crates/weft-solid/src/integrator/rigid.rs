@@ -13,7 +13,9 @@
 use nalgebra::{Matrix3, Rotation3, Vector3};
 
 use super::{Hessians, Integrator, NONE};
-use crate::energy::Local;
+use crate::energy::{Local, MAX_DOFS};
+
+const MAX_STENCIL: usize = MAX_DOFS / 3;
 use crate::spd::project_psd;
 use crate::system::SolidSystem;
 
@@ -37,6 +39,8 @@ pub(super) struct Groups {
     pub(super) grad_at: Vec<Vector3<f64>>,
     /// Elements with a member in their stencil (scattered through J, in order).
     pub(super) elements: Vec<u32>,
+    /// Their evaluation scratch.
+    pub(super) local: Option<Box<Local>>,
 }
 
 fn skew(q: &Vector3<f64>) -> Matrix3<f64> {
@@ -70,6 +74,7 @@ impl Groups {
             members,
             of,
             elements: Vec::new(),
+            local: None,
         }
     }
 
@@ -170,23 +175,33 @@ impl Integrator {
     /// Adds an element's `local` gradient and Hessian (stencil `verts`) through the nodes'
     /// Jacobians: for elements with a member in their stencil.
     pub(super) fn add_element_through_groups(&mut self, verts: &[u32], local: &Local) {
+        // Each stencil vertex's nodes, once: (node, S) with J = I for S = None and
+        // J = −S (S = [q]×) for a group's rotation node, so Jᵀ = S there.
+        let mut nodes = [([(NONE, None::<Matrix3<f64>>); 2], 0usize); MAX_STENCIL];
+        for (a, &va) in verts.iter().enumerate() {
+            let (list, k) = self.groups.nodes_of(&self.free_of, va as usize);
+            nodes[a].1 = k;
+            for (slot, &(n, j)) in nodes[a].0.iter_mut().zip(&list[..k]) {
+                // nodes_of gives −S for a rotation node, the identity otherwise.
+                *slot = (n, (j != Matrix3::identity()).then_some(-j));
+            }
+        }
         for (a, &va) in verts.iter().enumerate() {
             let ga = Vector3::new(
                 local.grad[3 * a],
                 local.grad[3 * a + 1],
                 local.grad[3 * a + 2],
             );
-            let (na_list, ka) = self.groups.nodes_of(&self.free_of, va as usize);
             if self.groups.of.get(va as usize).is_some_and(|&g| g != NONE) {
                 self.groups.grad_at[va as usize] += ga;
             }
-            for &(na, ja) in &na_list[..ka] {
-                let gj = ja.transpose() * ga;
+            let (na_list, ka) = nodes[a];
+            for &(na, sa) in &na_list[..ka] {
+                let gj = sa.map_or(ga, |s| s * ga);
                 for c in 0..3 {
                     self.grad[3 * na as usize + c] += gj[c];
                 }
-                for (b, &vb) in verts.iter().enumerate() {
-                    let (nb_list, kb) = self.groups.nodes_of(&self.free_of, vb as usize);
+                for (b, &(nb_list, kb)) in nodes[..verts.len()].iter().enumerate() {
                     if kb == 0 {
                         continue;
                     }
@@ -196,8 +211,10 @@ impl Integrator {
                             hab[(rr, cc)] = local.hess[3 * b + cc][3 * a + rr];
                         }
                     }
-                    for &(nb, jb) in &nb_list[..kb] {
-                        let blk = ja.transpose() * hab * jb;
+                    // Jaᵀ H Jb with Jᵀ = S and J = −S on rotation nodes.
+                    let left = sa.map_or(hab, |s| s * hab);
+                    for &(nb, sb) in &nb_list[..kb] {
+                        let blk = sb.map_or(left, |s| -(left * s));
                         self.add_block(na, nb, &blk);
                     }
                 }
