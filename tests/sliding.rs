@@ -345,7 +345,8 @@ fn bad_sliding_input_is_a_clear_error_naming_the_node() {
         r#""a": {"type": "geo.arc", "params": {"axis": [0, 0, 1], "from": [0, 0, 2]}},
            "b": {"type": "geo.arc", "params": {"start_angle": 10, "end_angle": 10}},
            "c": {"type": "geo.polyline", "params": {"points": [0, 0, 0, 1]}},
-           "d": {"type": "convert.attachment", "params": {"mode": "slide", "friction": -1}}"#,
+           "d": {"type": "convert.attachment", "params": {"mode": "slide", "friction": -1}},
+           "e": {"type": "convert.attachment", "params": {"mode": "rigid", "clamp": true}}"#,
         r#""a": "a.curves""#,
     ));
     for want in [
@@ -353,6 +354,7 @@ fn bad_sliding_input_is_a_clear_error_naming_the_node() {
         "node 'b': params: param 'end_angle': the arc must turn by more than 0",
         "node 'c': params: param 'points': needs x, y, z of two points or more (got 4 numbers)",
         "node 'd': param 'friction': must be >= 0, got -1",
+        "node 'e': params: param 'clamp': a clamp holds the direction at held vertices; with mode rigid they are not held",
     ] {
         assert!(e.contains(want), "missing {want:?} in {e}");
     }

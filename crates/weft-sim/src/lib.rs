@@ -46,4 +46,4 @@ pub use fluid::FluidSpec;
 pub use relaxation::{Relaxation, RelaxationMethod, fluid_change, relax, velocity_change};
 pub use slide::{SurfaceMesh, TargetPin};
 pub use stepper::{FrameStats, Scheme, SimState, SolidStepper, StepperSettings};
-pub use wrap::{HairWrap, Wrap};
+pub use wrap::{BYTES_PER_BOUND_VERTEX, HairWrap, STOPPED as WRAP_STOPPED, Wrap};

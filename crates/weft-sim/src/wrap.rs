@@ -12,6 +12,13 @@ use nalgebra::{Matrix3, Vector3};
 
 use crate::slide::SurfaceMesh;
 
+/// What a binding stopped by its caller says.
+pub const STOPPED: &str = "stopped before the binding was done";
+
+/// Bytes a binding keeps per render vertex (a triangle or three guide places, weights,
+/// offset), for memory checks before binding.
+pub const BYTES_PER_BOUND_VERTEX: u64 = 80;
+
 /// Each render vertex's place on the proxy.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Wrap {
@@ -53,6 +60,7 @@ impl Wrap {
         rest: &[[f64; 3]],
         triangles: &[[u32; 3]],
         render: &[[f64; 3]],
+        stop: &dyn Fn() -> bool,
     ) -> Result<Wrap, String> {
         let mesh = SurfaceMesh::new(rest, triangles)?;
         let mut w = Wrap {
@@ -61,6 +69,9 @@ impl Wrap {
             offset: Vec::with_capacity(render.len()),
         };
         for (i, p) in render.iter().enumerate() {
+            if i % 4096 == 4095 && stop() {
+                return Err(STOPPED.into());
+            }
             let p = Vector3::from(*p);
             let Some((k, weights, q)) = mesh.closest(&p) else {
                 return Err(format!("render vertex {i} is not finite"));
@@ -125,7 +136,7 @@ mod tests {
         for (k, p) in render.iter_mut().enumerate() {
             p[1] = 0.004 * ((k as f64) * 0.7).sin();
         }
-        let w = Wrap::bind(&proxy, &tris, &render).unwrap();
+        let w = Wrap::bind(&proxy, &tris, &render, &|| false).unwrap();
         let m = Isometry3::from_parts(
             Translation3::new(0.3, -1.2, 2.0),
             UnitQuaternion::from_euler_angles(0.7, -0.4, 2.1),
@@ -149,7 +160,7 @@ mod tests {
     #[test]
     fn a_render_mesh_equal_to_the_proxy_follows_it_exactly() {
         let (proxy, tris) = grid(6, 0.1);
-        let w = Wrap::bind(&proxy, &tris, &proxy).unwrap();
+        let w = Wrap::bind(&proxy, &tris, &proxy, &|| false).unwrap();
         // Any deformation, however far from rigid.
         let bent: Vec<[f64; 3]> = proxy
             .iter()
@@ -168,9 +179,9 @@ mod tests {
     #[test]
     fn bad_proxies_are_refused() {
         let (proxy, tris) = grid(3, 0.1);
-        assert!(Wrap::bind(&proxy, &[], &proxy).is_err());
-        assert!(Wrap::bind(&proxy, &[[0, 1, 99]], &proxy).is_err());
-        assert!(Wrap::bind(&proxy, &tris, &[[f64::NAN, 0.0, 0.0]]).is_err());
+        assert!(Wrap::bind(&proxy, &[], &proxy, &|| false).is_err());
+        assert!(Wrap::bind(&proxy, &[[0, 1, 99]], &proxy, &|| false).is_err());
+        assert!(Wrap::bind(&proxy, &tris, &[[f64::NAN, 0.0, 0.0]], &|| false).is_err());
     }
 }
 
@@ -232,6 +243,7 @@ impl HairWrap {
     pub fn bind(
         guides: &weft_scene::Curves,
         render: &weft_scene::Curves,
+        stop: &dyn Fn() -> bool,
     ) -> Result<HairWrap, String> {
         let finite =
             |c: &weft_scene::Curves| c.positions.iter().all(|p| p.iter().all(|v| v.is_finite()));
@@ -261,6 +273,9 @@ impl HairWrap {
             offset: Vec::new(),
         };
         for r in 0..render.len() {
+            if r % 1024 == 1023 && stop() {
+                return Err(STOPPED.into());
+            }
             if !valid(render, r) {
                 continue;
             }
@@ -373,7 +388,7 @@ mod hair_tests {
             }
             render.offsets.push(render.positions.len() as u32);
         }
-        let w = HairWrap::bind(&g, &render).unwrap();
+        let w = HairWrap::bind(&g, &render, &|| false).unwrap();
         // At rest: the render hairs themselves.
         for (got, want) in w.apply(&g.positions).iter().zip(&render.positions) {
             assert!((Vector3::from(*got) - Vector3::from(*want)).norm() < 1e-15);
@@ -413,13 +428,13 @@ mod hair_tests {
             positions: vec![[0.0; 3], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0]],
             offsets: vec![0, 2, 4],
         };
-        assert!(HairWrap::bind(&two, &two).is_err());
+        assert!(HairWrap::bind(&two, &two, &|| false).is_err());
         let line = Curves {
             positions: (0..3)
                 .flat_map(|k| [[k as f64, 0.0, 0.0], [k as f64, 1.0, 0.0]])
                 .collect(),
             offsets: vec![0, 2, 4, 6],
         };
-        assert!(HairWrap::bind(&line, &line).is_err());
+        assert!(HairWrap::bind(&line, &line, &|| false).is_err());
     }
 }

@@ -292,6 +292,12 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         |p| {
             check_name(p)?;
             indices(p, "vertices")?;
+            let mode = p.str("mode")?;
+            if p.bool("clamp")? && (mode == "slide" || mode == "rigid") {
+                return Err(format!(
+                    "param 'clamp': a clamp holds the direction at held vertices; with mode {mode} they are not held (use mode hard)"
+                ));
+            }
             Ok(Kernel::from_fn(attachment))
         },
     )

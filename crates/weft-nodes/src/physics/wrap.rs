@@ -41,6 +41,26 @@ fn key(cx: &mut EvalCx<'_>, driver: &str) -> Result<(u128, u128, String), NodeEr
     ))
 }
 
+/// Refuses a binding of `n` render vertices that would not fit in memory, before making it.
+fn room(cx: &EvalCx<'_>, n: usize, name: &str) -> Result<(), NodeError> {
+    weft_graph::memory::check_within(
+        weft_graph::memory::product(&[n as u64, weft_sim::BYTES_PER_BOUND_VERTEX]),
+        cx.memory_budget(),
+        || format!("binding the {n} vertices of '{name}'"),
+        "use a coarser render mesh or fewer render hairs",
+    )?;
+    Ok(())
+}
+
+/// A binding's error: interrupted (a stop was asked for) or what was wrong.
+fn bind_error(cx: &EvalCx<'_>, e: String, name: &str, driver: &str) -> NodeError {
+    if e == weft_sim::WRAP_STOPPED {
+        NodeError::Interrupted(format!("{}: binding '{name}'", cx.interrupt().reason()))
+    } else {
+        NodeError::Failed(format!("binding '{name}' to '{driver}': {e}"))
+    }
+}
+
 /// The driver's rest positions (its `rest` channel), else its current ones.
 fn rest_of<'a>(e: &'a SceneElement, now: &'a [[f64; 3]]) -> &'a [[f64; 3]] {
     e.vec3_channel("rest")
@@ -74,9 +94,10 @@ impl weft_graph::Compute for WrapNode {
         let key = key(cx, proxy_name)?;
         if self.binding.as_ref().is_none_or(|(k, _)| *k != key) {
             let rest = rest_of(proxy, &now.positions);
-            let w = Wrap::bind(rest, &now.triangles, &render.positions).map_err(|e| {
-                NodeError::Failed(format!("binding '{name}' to '{proxy_name}': {e}"))
-            })?;
+            room(cx, render.positions.len(), name)?;
+            let stop = cx.interrupt().checker();
+            let w = Wrap::bind(rest, &now.triangles, &render.positions, &*stop)
+                .map_err(|e| bind_error(cx, e, name, proxy_name))?;
             self.binding = Some((key, w));
         }
         let (_, w) = self.binding.as_ref().expect("bound above");
@@ -124,11 +145,10 @@ impl weft_graph::Compute for HairNode {
                 positions: rest_of(guides, &now.positions).to_vec(),
                 offsets: now.offsets.clone(),
             };
-            let w = HairWrap::bind(&rest, &render).map_err(|e| {
-                NodeError::Failed(format!(
-                    "binding '{name}' to the guides '{guides_name}': {e}"
-                ))
-            })?;
+            room(cx, render.positions.len(), name)?;
+            let stop = cx.interrupt().checker();
+            let w = HairWrap::bind(&rest, &render, &*stop)
+                .map_err(|e| bind_error(cx, e, name, guides_name))?;
             self.binding = Some((key, w));
         }
         let (_, w) = self.binding.as_ref().expect("bound above");
