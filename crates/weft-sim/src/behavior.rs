@@ -575,11 +575,7 @@ impl Behavior for AttachmentBehavior {
 
 /// Whether global vertex `g` already slides or is in a rigid group.
 fn constrained(b: &SystemBuilder, g: usize) -> bool {
-    b.system.sliders.iter().any(|s| s.vertex as usize == g)
-        || b.system
-            .rigid
-            .iter()
-            .any(|r| r.vertices.contains(&(g as u32)))
+    b.constrained[g]
 }
 
 /// Rigid attachment `a`: its vertices of the target (first global vertex `off`, `n`
@@ -624,6 +620,7 @@ fn rigid(
     }
     for &g in &group {
         b.add_mass(g as usize, mass / group.len() as f64);
+        b.constrained[g as usize] = true;
     }
     b.system
         .rigid

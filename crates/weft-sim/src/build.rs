@@ -229,6 +229,7 @@ pub fn compile_within(
         pins: Vec::new(),
         clamps: Vec::new(),
         targets: Vec::new(),
+        constrained: vec![false; n],
         ghosts: ghosts.into_iter().map(|(g, _)| g).collect(),
         warnings: Vec::new(),
         read: vec![BTreeSet::new(); scene.len()],

@@ -42,6 +42,9 @@ pub struct SystemBuilder {
     pub(crate) pins: Vec<Pin>,
     pub(crate) clamps: Vec<ClampPin>,
     pub(crate) targets: Vec<crate::slide::TargetPin>,
+    /// Per vertex: it already slides or is in a rigid group (so a second attachment listing
+    /// it is refused without searching the lists).
+    pub(crate) constrained: Vec<bool>,
     /// Ghost vertices behind clamped cloth edges (made before any Behavior applies).
     pub ghosts: Vec<crate::Ghost>,
     pub(crate) warnings: Vec<String>,

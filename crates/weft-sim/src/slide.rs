@@ -292,19 +292,16 @@ pub(crate) fn targets(
     }
     let surfaces_start = b.system.surfaces.len();
     if let Some(sec) = surface {
-        let mesh = SurfaceMesh::new(&sec.mesh.positions, &sec.mesh.triangles)?;
-        let pin = TargetPin::Surface {
-            surface: b.system.surfaces.len(),
-            attachment: ai,
-            mesh: Arc::new(mesh),
-        };
+        let mesh = Arc::new(SurfaceMesh::new(&sec.mesh.positions, &sec.mesh.triangles)?);
         b.system.surfaces.push(Arc::new(PlacedSurface {
-            mesh: match &pin {
-                TargetPin::Surface { mesh, .. } => mesh.clone(),
-                TargetPin::Rail { .. } => unreachable!("made as a surface above"),
-            },
+            mesh: mesh.clone(),
             at: Isometry3::identity(),
         }));
+        let pin = TargetPin::Surface {
+            surface: b.system.surfaces.len() - 1,
+            attachment: ai,
+            mesh,
+        };
         pin.place(a.transform, &mut b.system);
         b.targets.push(pin);
     }
@@ -345,6 +342,7 @@ pub(crate) fn slide(
         ));
     }
     b.x[g] = p;
+    b.constrained[g] = true;
     b.system.sliders.push(Slider {
         vertex: g as u32,
         on,

@@ -111,10 +111,22 @@ impl Wrap {
     }
 }
 
+/// The points moved by one fixed rigid motion (the tests' check of rigid invariance).
+#[cfg(test)]
+fn rigidly_moved(ps: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+    let m = Isometry3::from_parts(
+        Translation3::new(0.3, -1.2, 2.0),
+        UnitQuaternion::from_euler_angles(0.7, -0.4, 2.1),
+    );
+    ps.iter()
+        .map(|p| m.transform_point(&(*p).into()).coords.into())
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 
     /// An n × n grid of spacing `a` in y = 0 (`weft_scene::procedural::grid`).
     fn grid(n: usize, a: f64) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
@@ -137,17 +149,8 @@ mod tests {
             p[1] = 0.004 * ((k as f64) * 0.7).sin();
         }
         let w = Wrap::bind(&proxy, &tris, &render, &|| false).unwrap();
-        let m = Isometry3::from_parts(
-            Translation3::new(0.3, -1.2, 2.0),
-            UnitQuaternion::from_euler_angles(0.7, -0.4, 2.1),
-        );
-        let moved = |ps: &[[f64; 3]]| -> Vec<[f64; 3]> {
-            ps.iter()
-                .map(|p| m.transform_point(&(*p).into()).coords.into())
-                .collect()
-        };
-        let out = w.apply(&moved(&proxy), &tris);
-        for (got, want) in out.iter().zip(moved(&render)) {
+        let out = w.apply(&rigidly_moved(&proxy), &tris);
+        for (got, want) in out.iter().zip(rigidly_moved(&render)) {
             let d = (Vector3::from(*got) - Vector3::from(want)).norm();
             assert!(d < 1e-12, "{got:?} vs {want:?}");
         }
@@ -344,7 +347,6 @@ impl HairWrap {
 #[cfg(test)]
 mod hair_tests {
     use super::*;
-    use nalgebra::{Isometry3, Translation3, UnitQuaternion};
     use weft_scene::Curves;
 
     /// Strands of 6 vertices rising from roots on a 3 × 3 patch, bent differently.
@@ -393,17 +395,8 @@ mod hair_tests {
         for (got, want) in w.apply(&g.positions).iter().zip(&render.positions) {
             assert!((Vector3::from(*got) - Vector3::from(*want)).norm() < 1e-15);
         }
-        let m = Isometry3::from_parts(
-            Translation3::new(0.3, -1.2, 2.0),
-            UnitQuaternion::from_euler_angles(0.7, -0.4, 2.1),
-        );
-        let moved = |ps: &[[f64; 3]]| -> Vec<[f64; 3]> {
-            ps.iter()
-                .map(|p| m.transform_point(&(*p).into()).coords.into())
-                .collect()
-        };
-        let out = w.apply(&moved(&g.positions));
-        for (got, want) in out.iter().zip(moved(&render.positions)) {
+        let out = w.apply(&rigidly_moved(&g.positions));
+        for (got, want) in out.iter().zip(rigidly_moved(&render.positions)) {
             assert!((Vector3::from(*got) - Vector3::from(want)).norm() < 1e-12);
         }
         // Any motion of the guides: the copy of guide 4 is guide 4.

@@ -794,14 +794,19 @@ impl Integrator {
 
     /// ‖dir‖∞ · `scale` (the residual the tolerance is compared with).
     fn direction_size(&self, scale: f64) -> f64 {
-        if !self.groups.is_empty() {
-            // A group's rotation node is in radians: its members' displacements count.
-            let free = self.dir[..3 * self.groups.first]
-                .iter()
-                .fold(0.0f64, |m, d| m.max(d.abs()));
-            return free.max(self.member_step_size(&self.dir)) * scale;
+        self.step_size(&self.dir) * scale
+    }
+
+    /// The largest displacement of a vertex by the step `d` (over the nodes): a group's
+    /// rotation node is in radians, so its members' displacements count instead.
+    fn step_size(&self, d: &[f64]) -> f64 {
+        if self.groups.is_empty() {
+            return d.iter().fold(0.0f64, |m, d| m.max(d.abs()));
         }
-        self.dir.iter().fold(0.0f64, |m, d| m.max(d.abs())) * scale
+        let free = d[..3 * self.groups.first]
+            .iter()
+            .fold(0.0f64, |m, d| m.max(d.abs()));
+        free.max(self.member_step_size(d))
     }
 
     /// Factorizes `values` + `shift`·I and solves for the direction `dir = −H⁻¹ grad`. If the

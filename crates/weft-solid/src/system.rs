@@ -221,7 +221,8 @@ pub enum SystemError {
         /// Vertex count.
         n: usize,
     },
-    /// A sliding vertex that cannot slide: out of range, held, listed twice, with a negative
+    /// A sliding vertex that cannot slide: out of range, held, in a rigid group, listed twice,
+    /// with a negative
     /// or non-finite friction, or on a rail that does not exist or has no segment of positive,
     /// finite length (or a surface that does not exist).
     ///
@@ -233,8 +234,8 @@ pub enum SystemError {
         /// What is wrong.
         reason: String,
     },
-    /// A rigid group that cannot move as one: too few vertices, one out of range, held,
-    /// sliding or in two groups; or a step method that cannot keep it rigid.
+    /// A rigid group that cannot move as one: too few vertices, one out of range, held or in
+    /// two groups; or a step method that cannot keep it rigid.
     ///
     /// Rigid group 1: vertex 8 is also held in place.
     #[error("rigid group {group}: {reason}")]
@@ -311,7 +312,9 @@ impl SolidSystem {
         if let Some(vertex) = bad {
             return Err(SystemError::VertexOutOfRange { vertex, n });
         }
-        let mut grouped = vec![false; n];
+        // Per-vertex flags only when there is something to flag (this runs every step).
+        let flags = |k: usize| vec![false; if k == 0 { 0 } else { n }];
+        let mut grouped = flags(self.rigid.len());
         for (group, g) in self.rigid.iter().enumerate() {
             let fail = |reason: String| Err(SystemError::BadRigid { group, reason });
             if g.vertices.len() < 2 {
@@ -328,15 +331,12 @@ impl SolidSystem {
                 if self.pinned[v] {
                     return fail(format!("vertex {v} is also held in place"));
                 }
-                if self.sliders.iter().any(|s| s.vertex as usize == v) {
-                    return fail(format!("vertex {v} also slides on a target"));
-                }
                 if std::mem::replace(&mut grouped[v], true) {
                     return fail(format!("vertex {v} is in it twice, or in another group"));
                 }
             }
         }
-        let mut sliding = vec![false; n];
+        let mut sliding = flags(self.sliders.len());
         for sl in &self.sliders {
             let vertex = sl.vertex as usize;
             let fail = |reason: String| Err(SystemError::BadSlider { vertex, reason });
@@ -348,6 +348,9 @@ impl SolidSystem {
             }
             if std::mem::replace(&mut sliding[vertex], true) {
                 return fail("it is listed twice".into());
+            }
+            if grouped.get(vertex).copied().unwrap_or(false) {
+                return fail("it is also in a rigid group".into());
             }
             if !(sl.friction >= 0.0 && sl.friction.is_finite()) {
                 return fail(format!(

@@ -551,14 +551,7 @@ impl Integrator {
                 alpha *= 0.5;
                 stats.halvings += 1;
             }
-            let step = if self.groups.is_empty() {
-                alpha * delta.iter().fold(0.0f64, |m, d| m.max(d.abs())) / h
-            } else {
-                let free = delta[..3 * self.groups.first]
-                    .iter()
-                    .fold(0.0f64, |m, d| m.max(d.abs()));
-                alpha * free.max(self.member_step_size(&delta)) / h
-            };
+            let step = alpha * self.step_size(&delta) / h;
             x = trial;
             stats.iterations = it + 1;
             stats.residuals.push(step);

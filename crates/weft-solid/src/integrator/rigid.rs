@@ -324,14 +324,18 @@ mod tests {
         ];
         let mass = vec![0.01, 0.02, 0.015];
         let total: f64 = mass.iter().sum();
-        let c0 = x
-            .iter()
-            .zip(&mass)
-            .map(|(p, m)| *m * p)
-            .sum::<Vector3<f64>>()
-            / total;
+        // The mass-weighted mean of positions or velocities.
+        let mean = |p: &[Vector3<f64>]| {
+            p.iter()
+                .zip(&mass)
+                .map(|(p, m)| *m * p)
+                .sum::<Vector3<f64>>()
+                / total
+        };
+        let c0 = mean(&x);
         let (omega, vc0) = (Vector3::new(3.0, -5.0, 8.0), Vector3::new(0.2, 1.0, 0.0));
-        let v = x.iter().map(|p| vc0 + omega.cross(&(p - c0))).collect();
+        let v0: Vec<_> = x.iter().map(|p| vc0 + omega.cross(&(p - c0))).collect();
+        let v = v0.clone();
         let mut sys = SolidSystem::new(mass.clone());
         sys.gravity = Vector3::new(0.0, -9.81, 0.0);
         sys.rigid.push(RigidGroup {
@@ -354,33 +358,15 @@ mod tests {
                     rest[k]
                 );
             }
-            let vc =
-                s.v.iter()
-                    .zip(&mass)
-                    .map(|(v, m)| *m * v)
-                    .sum::<Vector3<f64>>()
-                    / total;
+            let vc = mean(&s.v);
             let want = vc0 + n as f64 * h * sys.gravity;
             assert!((vc - want).norm() < 1e-9, "step {n}: {vc:?} vs {want:?}");
         }
         // Still spinning (implicit Euler damps a free rotation by ~(ωh)²/2 a step, here
         // ~0.5 %, so about 40 % is left after 100 steps; not to rest).
         let spin = |x: &[Vector3<f64>], v: &[Vector3<f64>]| {
-            let c = x
-                .iter()
-                .zip(&mass)
-                .map(|(p, m)| *m * p)
-                .sum::<Vector3<f64>>()
-                / total;
-            let vc = v
-                .iter()
-                .zip(&mass)
-                .map(|(v, m)| *m * v)
-                .sum::<Vector3<f64>>()
-                / total;
-            (v[1] - vc).norm() / (x[1] - c).norm()
+            (v[1] - mean(v)).norm() / (x[1] - mean(x)).norm()
         };
-        let v0: Vec<_> = x.iter().map(|p| vc0 + omega.cross(&(p - c0))).collect();
         let (now, then) = (spin(&s.x, &s.v), spin(&x, &v0));
         assert!(
             now > 0.3 * then && now < then,
