@@ -56,12 +56,16 @@ pub struct OnSurface {
 }
 
 /// What a sliding vertex slides on.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum SlideOn {
     /// Rail k of [`crate::SolidSystem::rails`].
     Rail(u32),
     /// Surface k of [`crate::SolidSystem::surfaces`].
     Surface(u32),
+    /// A point [m]: the vertex is held there exactly (P = 0, retracted onto it), without the
+    /// pattern change that pinning it would need; the caller moves the point between steps
+    /// (frozen vertices following an animated input).
+    Point(Vector3<f64>),
 }
 
 /// Where a sliding vertex's target holds a point, as the filter needs it.
@@ -121,6 +125,11 @@ pub fn place(
                 stop: o.border.map(|(e, out)| (e * e.transpose(), out)),
             })
         }
+        SlideOn::Point(point) => Some(Place {
+            point,
+            free: Matrix3::zeros(),
+            stop: None,
+        }),
     }
 }
 

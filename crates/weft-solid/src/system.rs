@@ -381,6 +381,11 @@ impl SolidSystem {
                         ));
                     }
                 }
+                SlideOn::Point(p) => {
+                    if !p.iter().all(|c| c.is_finite()) {
+                        return fail(format!("it is held at a non-finite point {p:?}"));
+                    }
+                }
             }
         }
         Ok(())
