@@ -23,7 +23,7 @@ pub use obj::{ObjError, read_obj, write_obj_curves, write_obj_mesh};
 pub use preview::{Camera, Image, PreviewError, PreviewItem, auto_camera, render, write_png};
 pub use sec::{
     Attachment, AttachmentMode, Collider, CollisionGroup, CollisionResponse, Density,
-    DiscreteShell, DomainSide, Drag, Fluid, FluidDomain, Members, Rod, Sec, SecSet, SlideRail,
-    SlideSurface,
+    DiscreteShell, DomainSide, Drag, Fluid, FluidDomain, FreezeWeights, Members, Rod, Sec, SecSet,
+    SlideRail, SlideSurface,
 };
 pub use usd::{UsdError, UsdaScene};

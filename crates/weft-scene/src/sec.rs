@@ -302,7 +302,25 @@ pub enum AttachmentMode {
         /// Added mass ≥ 0 [kg].
         mass: f64,
     },
+    /// Frozen to the target element's animated input, by `weight` (times the per-vertex
+    /// factors of a [`FreezeWeights`] SEC on the same element): at w ≥ 1 each vertex is
+    /// exactly at its input position; at 0 < w < 1 a zero-length spring of stiffness
+    /// w/(1 − w)·m/Δt² (m the vertex's mass, Δt the frame time) pulls it there; at 0 it is
+    /// free. Read at every frame, so an animated weight locks and releases regions.
+    Freeze {
+        /// w ≥ 0 (values above 1 hold as 1 does).
+        weight: f64,
+    },
 }
+
+/// Freeze Weights: per listed vertex of a freeze attachment (in the order of its
+/// [`Attachment::vertices`]), a factor ≥ 0 on the attachment's weight.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FreezeWeights {
+    /// One factor per listed vertex.
+    pub weights: Vec<f64>,
+}
+sec_impl!(FreezeWeights, "freeze_weights");
 
 /// Slide Rail: the curves a sliding attachment's vertices stay on (polylines, in the frame
 /// of the attachment element's transform; world when it has none). Each vertex slides on

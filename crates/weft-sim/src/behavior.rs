@@ -474,7 +474,12 @@ impl Behavior for AttachmentBehavior {
         "attachment"
     }
     fn reads(&self) -> &'static [&'static str] {
-        &["attachment", "slide_rail", "slide_surface"]
+        &[
+            "attachment",
+            "slide_rail",
+            "slide_surface",
+            "freeze_weights",
+        ]
     }
     fn apply(&self, scene: &[SceneElement], b: &mut SystemBuilder) -> Result<(), SimError> {
         for (ai, a) in scene.iter().enumerate() {
@@ -502,6 +507,11 @@ impl Behavior for AttachmentBehavior {
             let n = scene[ti].vertex_count();
             if let AttachmentMode::Rigid { mass } = att.mode {
                 rigid(scene, b, a, att, off, n, mass).map_err(fail)?;
+                continue;
+            }
+            if let AttachmentMode::Freeze { weight } = att.mode {
+                b.read(ai, "freeze_weights");
+                freeze(b, a, ai, ti, off, n, weight).map_err(fail)?;
                 continue;
             }
             let targets = if let AttachmentMode::Slide { friction } = att.mode {
@@ -536,17 +546,17 @@ impl Behavior for AttachmentBehavior {
                         // Two attachments on one vertex: said here, with their names.
                         if b.system.pinned[g] || constrained(b, g) {
                             return Err(fail(format!(
-                                "vertex {v} of '{}' is already held, sliding or in a rigid group (another attachment lists it)",
+                                "vertex {v} of '{}' is already held, sliding, frozen or in a rigid group (another attachment lists it)",
                                 att.target
                             )));
                         }
                         crate::slide::slide(b, g, targets.clone(), friction, &att.target, v);
                         continue;
                     }
-                    AttachmentMode::Rigid { .. } => continue,
+                    AttachmentMode::Rigid { .. } | AttachmentMode::Freeze { .. } => continue,
                     AttachmentMode::Hard if constrained(b, g) => {
                         return Err(fail(format!(
-                            "vertex {v} of '{}' already slides or is in a rigid group (another attachment lists it)",
+                            "vertex {v} of '{}' already slides, is frozen or is in a rigid group (another attachment lists it)",
                             att.target
                         )));
                     }
@@ -576,6 +586,81 @@ impl Behavior for AttachmentBehavior {
 /// Whether global vertex `g` already slides or is in a rigid group.
 fn constrained(b: &SystemBuilder, g: usize) -> bool {
     b.constrained[g]
+}
+
+/// Freeze attachment `a` (scene index `ai`) on element `ti` (first global vertex `off`, `n`
+/// vertices): a [`crate::FreezePin`] and a spring (stiffness 0 until a weight sets it) per
+/// listed vertex, with its factor from a Freeze Weights SEC (1 without one).
+fn freeze(
+    b: &mut SystemBuilder,
+    a: &SceneElement,
+    ai: usize,
+    ti: usize,
+    off: u32,
+    n: usize,
+    weight: f64,
+) -> Result<(), String> {
+    let Some(att) = a.secs.get::<Attachment>() else {
+        return Ok(());
+    };
+    if !(weight >= 0.0 && weight.is_finite()) {
+        return Err(format!("the freeze weight must be ≥ 0, got {weight}"));
+    }
+    let factors = a.secs.get::<weft_scene::FreezeWeights>();
+    if let Some(f) = factors
+        && f.weights.len() != att.vertices.len()
+    {
+        return Err(format!(
+            "{} vertex weights for {} listed vertices (one each, in the same order)",
+            f.weights.len(),
+            att.vertices.len()
+        ));
+    }
+    // Sorted by vertex, a vertex listed twice frozen once (its first factor).
+    let mut listed: Vec<(u32, f64)> = att
+        .vertices
+        .iter()
+        .enumerate()
+        .map(|(k, &v)| (v, factors.map_or(1.0, |f| f.weights[k])))
+        .collect();
+    listed.sort_by_key(|&(v, _)| v);
+    listed.dedup_by_key(|&mut (v, _)| v);
+    for (v, factor) in listed {
+        if v as usize >= n {
+            return Err(format!(
+                "vertex {v} is out of range (element '{}' has {n} vertices)",
+                att.target
+            ));
+        }
+        if !(factor >= 0.0 && factor.is_finite()) {
+            return Err(format!(
+                "the weight of vertex {v} must be ≥ 0, got {factor}"
+            ));
+        }
+        let g = (v + off) as usize;
+        if b.system.pinned[g] || constrained(b, g) {
+            return Err(format!(
+                "vertex {v} of '{}' is already held, sliding, frozen or in a rigid group (another attachment lists it)",
+                att.target
+            ));
+        }
+        b.constrained[g] = true;
+        b.system.elements.springs.push(Spring {
+            v: [g as u32],
+            target: b.x[g],
+            k: 0.0,
+        });
+        let spring = b.system.elements.springs.len() - 1;
+        b.freezes.push(crate::FreezePin {
+            vertex: g,
+            element: ti,
+            index: v as usize,
+            attachment: ai,
+            factor,
+            spring,
+        });
+    }
+    Ok(())
 }
 
 /// Rigid attachment `a`: its vertices of the target (first global vertex `off`, `n`
@@ -612,7 +697,7 @@ fn rigid(
         let g = v + off;
         if b.system.pinned[g as usize] || constrained(b, g as usize) {
             return Err(format!(
-                "vertex {v} of '{}' is already held, sliding or in a rigid group (another attachment lists it)",
+                "vertex {v} of '{}' is already held, sliding, frozen or in a rigid group (another attachment lists it)",
                 att.target
             ));
         }

@@ -25,6 +25,11 @@ pub struct Compiled {
     /// Rails and surfaces of sliding attachments (they move with the attachments'
     /// transforms).
     pub targets: Vec<crate::slide::TargetPin>,
+    /// Frozen vertices (freeze attachments), in attachment order.
+    pub freezes: Vec<crate::freeze::FreezePin>,
+    /// Sliders of sliding attachments: `system.sliders`' first entries (frozen vertices held
+    /// in a step are point sliders after them).
+    pub base_sliders: usize,
     /// Problems that do not stop the simulation (unread SECs, non-manifold edges).
     pub warnings: Vec<String>,
     /// Terms in the system, by kind: what the scene asked for and nothing else.
@@ -229,6 +234,7 @@ pub fn compile_within(
         pins: Vec::new(),
         clamps: Vec::new(),
         targets: Vec::new(),
+        freezes: Vec::new(),
         constrained: vec![false; n],
         ghosts: ghosts.into_iter().map(|(g, _)| g).collect(),
         warnings: Vec::new(),
@@ -324,6 +330,7 @@ pub fn compile_within(
         ("rod_clamps", el.clamps.len()),
         ("cloth_clamp_ghosts", b.ghosts.len()),
         ("springs", el.springs.len()),
+        ("frozen", b.freezes.len()),
         ("drag_elements", b.drag_elements.len()),
         (
             "contact_pairs",
@@ -332,6 +339,7 @@ pub fn compile_within(
         ("pinned", b.system.pinned.iter().filter(|p| **p).count()),
         ("vertices", n),
     ]);
+    let base_sliders = b.system.sliders.len();
     Ok(Compiled {
         state: State { x: b.x, v },
         system: b.system,
@@ -339,6 +347,8 @@ pub fn compile_within(
         pins: b.pins,
         clamps: b.clamps,
         targets: b.targets,
+        freezes: b.freezes,
+        base_sliders,
         warnings: b.warnings,
         terms,
         drag_elements: b.drag_elements,

@@ -42,7 +42,8 @@ pub struct SystemBuilder {
     pub(crate) pins: Vec<Pin>,
     pub(crate) clamps: Vec<ClampPin>,
     pub(crate) targets: Vec<crate::slide::TargetPin>,
-    /// Per vertex: it already slides or is in a rigid group (so a second attachment listing
+    pub(crate) freezes: Vec<crate::freeze::FreezePin>,
+    /// Per vertex: it already slides, is frozen or is in a rigid group (so a second attachment listing
     /// it is refused without searching the lists).
     pub(crate) constrained: Vec<bool>,
     /// Ghost vertices behind clamped cloth edges (made before any Behavior applies).

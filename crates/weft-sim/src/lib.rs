@@ -20,6 +20,7 @@ mod coupled;
 mod error;
 pub mod estimate;
 mod fluid;
+mod freeze;
 mod relaxation;
 mod slide;
 mod stepper;
@@ -43,6 +44,7 @@ pub use coupled::{
 };
 pub use error::SimError;
 pub use fluid::FluidSpec;
+pub use freeze::{FreezeFrame, FreezePin};
 pub use relaxation::{Relaxation, RelaxationMethod, fluid_change, relax, velocity_change};
 pub use slide::{SurfaceMesh, TargetPin};
 pub use stepper::{FrameStats, Scheme, SimState, SolidStepper, StepperSettings};

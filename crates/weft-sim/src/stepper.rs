@@ -2,7 +2,8 @@
 //!
 //! Each frame is split into substeps. Attachment targets follow their element's transform,
 //! interpolated between the previous frame's and this frame's (translation linearly, rotation
-//! by slerp) at each substep's end time. A substep that fails (no convergence, a NaN) is
+//! by slerp) at each substep's end time; frozen vertices' inputs are interpolated linearly
+//! between the two frames' (`freeze.rs`). A substep that fails (no convergence, a NaN) is
 //! retried as two half steps, recursively up to `max_retries` levels, and every retry is
 //! counted in the frame's statistics; if it still fails the error names the frame and substep.
 
@@ -71,6 +72,9 @@ pub struct SimState {
     /// For [`Scheme::Bdf2`]: the state one step before `solid`, and that step's length;
     /// `None` when the next step starts with implicit Euler.
     pub history: Option<(State, f64)>,
+    /// Each frozen vertex's input position at this frame (where the next frame's freeze
+    /// targets start: [`Compiled::freeze_inputs`]); empty without freeze attachments.
+    pub inputs: Vec<Vector3<f64>>,
 }
 
 /// What a frame cost.
@@ -117,6 +121,8 @@ pub struct SolidStepper {
     integrator: Integrator,
     settings: StepperSettings,
     targets: Vec<Vector3<f64>>,
+    /// The frame being stepped's frozen vertices (their inputs and weights).
+    freeze: crate::FreezeFrame,
     /// Contact machinery (None: the scene has no contact pairs, or no frame was stepped).
     contacts: Option<Contacts>,
 }
@@ -157,6 +163,7 @@ impl SolidStepper {
             integrator,
             settings,
             targets,
+            freeze: Default::default(),
             contacts: None,
         })
     }
@@ -178,12 +185,14 @@ impl SolidStepper {
             solid: self.compiled.state.clone(),
             transforms: scene.iter().map(|e| e.transform).collect(),
             history: None,
+            inputs: self.compiled.freeze_inputs(scene),
         }
     }
 
     fn set_targets(&mut self, from: &[Option<Transform>], to: &[Option<Transform>], s: f64) {
         self.compiled
             .set_targets(from, to, s, &mut self.system, &mut self.targets);
+        self.compiled.set_freeze(&self.freeze, s, &mut self.system);
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -279,6 +288,9 @@ impl SolidStepper {
         let t0 = Instant::now();
         self.compiled.check_scene(scene, frame)?;
         let to: Vec<Option<Transform>> = scene.iter().map(|e| e.transform).collect();
+        self.freeze = self
+            .compiled
+            .freeze_frame(scene, &prev.inputs, frame, frame_dt)?;
         let n = self.settings.substeps.max(1);
         let h = frame_dt / n as f64;
         let mut st = prev.solid.clone();
@@ -342,6 +354,7 @@ impl SolidStepper {
                 solid: st,
                 transforms: to,
                 history,
+                inputs: std::mem::take(&mut self.freeze.end),
             },
             stats,
         ))

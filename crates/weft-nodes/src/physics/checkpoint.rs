@@ -85,7 +85,35 @@ pub(crate) fn read_sim(r: &mut Reader<'_>, template: &SimState) -> Result<SimSta
         solid: State { x, v },
         transforms,
         history: None,
+        inputs: Vec::new(),
     })
+}
+
+/// Writes a state's frozen inputs (after everything else: a checkpoint from before freeze
+/// attachments ends without them).
+fn write_inputs(w: &mut Writer, s: &SimState) {
+    w.vec3s(&vecs(&s.inputs));
+}
+
+/// Reads what [`write_inputs`] wrote into `s`, which must have as many as `template`.
+fn read_inputs(
+    r: &mut Reader<'_>,
+    mut s: SimState,
+    template: &SimState,
+) -> Result<SimState, String> {
+    if r.end().is_ok() {
+        s.inputs = Vec::new();
+    } else {
+        s.inputs = unvecs(r.vec3s()?);
+    }
+    if s.inputs.len() != template.inputs.len() {
+        return Err(format!(
+            "{} frozen inputs for {} frozen vertices",
+            s.inputs.len(),
+            template.inputs.len()
+        ));
+    }
+    Ok(s)
 }
 
 /// Writes the BDF2 history of a solid state (the state one step before and that step's
@@ -129,15 +157,17 @@ fn read_history(r: &mut Reader<'_>, mut s: SimState) -> Result<SimState, String>
     Ok(s)
 }
 
-/// Writes `solver.solid`'s state: the solid state, then its BDF2 history.
+/// Writes `solver.solid`'s state: the solid state, its BDF2 history, its frozen inputs.
 pub(crate) fn write_solid(w: &mut Writer, s: &SimState) {
     write_sim(w, s);
     write_history(w, s);
+    write_inputs(w, s);
 }
 
 /// Reads what [`write_solid`] wrote (or, from before BDF2, [`write_sim`] alone).
 pub(crate) fn read_solid(r: &mut Reader<'_>, template: &SimState) -> Result<SimState, String> {
-    read_sim(r, template).and_then(|s| read_history(r, s))
+    let s = read_sim(r, template).and_then(|s| read_history(r, s))?;
+    read_inputs(r, s, template)
 }
 
 /// Writes a fluid's fields (the domain is the compiled scene's, not stored).
@@ -198,6 +228,7 @@ pub(crate) fn encode_state(v: &Value) -> Option<Vec<u8>> {
     w.u64(s.iteration as u64)
         .f64s(&s.residual)
         .f64s(&s.exchange);
+    write_inputs(&mut w, &s.sim);
     Some(w.finish())
 }
 
@@ -227,6 +258,7 @@ pub(crate) fn restore_state(
         [a, b, c] => [a, b, c],
         _ => return Err("expected a momentum".into()),
     };
+    let sim = read_inputs(&mut r, sim, &t.sim)?;
     r.end()?;
     let scene = inputs
         .iter()
@@ -265,6 +297,7 @@ mod tests {
                 )),
             ],
             history: None,
+            inputs: Vec::new(),
         };
         let mut w = Writer::new();
         write_sim(&mut w, &s);
@@ -279,8 +312,9 @@ mod tests {
         }
     }
 
-    /// The BDF2 history round-trips bit for bit after the state; a checkpoint that ends
-    /// after the state (written before BDF2) reads as no history; a damaged one is refused.
+    /// The BDF2 history and the frozen inputs round-trip bit for bit after the state; a
+    /// checkpoint that ends after the state (written before BDF2 and freeze) reads as no
+    /// history and no inputs; a damaged one is refused.
     #[test]
     fn histories_round_trip_and_old_checkpoints_read_as_none() {
         let state = |a: f64| State {
@@ -291,6 +325,7 @@ mod tests {
             solid: state(0.5),
             transforms: vec![None],
             history: Some((state(0.25), 1.0 / 96.0)),
+            inputs: vec![nalgebra::Vector3::new(0.3, -1e-310, 7.0); 2],
         };
         let mut w = Writer::new();
         write_solid(&mut w, &s);
@@ -302,8 +337,14 @@ mod tests {
         let mut old = Writer::new();
         write_sim(&mut old, &s);
         let old = old.finish();
-        let back = read_solid(&mut Reader::new(&old), &s).unwrap();
-        assert_eq!(back.history, None);
+        let unfrozen = SimState {
+            inputs: Vec::new(),
+            ..s.clone()
+        };
+        let back = read_solid(&mut Reader::new(&old), &unfrozen).unwrap();
+        assert_eq!((back.history, back.inputs.len()), (None, 0));
+        // A scene with frozen vertices needs their inputs.
+        assert!(read_solid(&mut Reader::new(&old), &s).is_err());
         for cut in old.len() + 1..b.len() {
             assert!(read_solid(&mut Reader::new(&b[..cut]), &s).is_err());
         }

@@ -6,8 +6,8 @@ use weft_graph::{
 };
 use weft_scene::{
     Attachment, AttachmentMode, Channel, CollisionGroup, CollisionResponse, Curves, DomainSide,
-    ElementKind, FluidDomain, Geometry, Members, Mesh, SceneElement, SlideRail, SlideSurface,
-    Transform,
+    ElementKind, FluidDomain, FreezeWeights, Geometry, Members, Mesh, SceneElement, SlideRail,
+    SlideSurface, Transform,
 };
 
 fn check_name(p: &Params) -> Result<(), String> {
@@ -279,13 +279,15 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             .input_default("transform", "transform", json!(null), "moves the attachment points (fixed in place when unconnected); with mode = slide, places the rails (their curves are in its frame)")
             .input_default("along", "curves", json!(null), "mode = slide: rails (polylines); each listed vertex slides on the rail or surface nearest to it at the start, moved onto it there, and stays on it exactly (a rail's ends are stops)")
             .input_default("onto", "mesh", json!(null), "mode = slide: a surface (a collider's mesh, say) the listed vertices slide on, exactly (its open borders are stops)")
+            .input_default("weight", "float", json!(1.0), "mode = freeze: the weight w ≥ 0, read at every frame (wire a time-driven node to key it): w ≥ 1 holds each listed vertex exactly at the target's animated input, 0 < w < 1 pulls it there by a zero-length spring of stiffness w/(1 − w)·m/Δt² (m its mass, Δt the frame time), 0 leaves it free")
             .output("element", "element", "a data-less attachment element")
             .param(ParamSpec::string("name", "attachment").doc("element name, unique in the scene"))
             .param(ParamSpec::choice("select", &["vertices", "curve_roots"], "vertices").doc("vertices: the listed indices; curve_roots: the first vertices of every curve"))
             .param(ParamSpec::floats("vertices", &[]).doc("vertex indices (select = vertices)"))
             .param(ParamSpec::int("root_vertices", 2).ge(1.0).le(16.0).doc("vertices per curve root: 1 holds the root vertex and lets the strand turn about it; k >= 2 holds the first k - 1 and clamps the strand's direction at the last of them (2: a strand clamped at its root, bending over its whole length)"))
             .param(ParamSpec::bool("clamp", false).doc("select = vertices: also hold the direction the element leaves them in, as it starts and turned with the transform (cloth: its tangent plane along every border edge whose two vertices are listed, so one listed row is a clamped edge, not a hinge; strands: where the free strand leaves a listed vertex)"))
-            .param(ParamSpec::choice("mode", &["hard", "spring", "slide", "rigid"], "hard").doc("hard: exactly; spring: a zero-length spring; slide: on the rails ('along') or the surface ('onto'), free along them, exactly; rigid: the listed vertices move as one rigid body, free (a button, a bead), their distances kept exactly; to weld a group to an animated transform, attach its vertices hard instead"))
+            .param(ParamSpec::choice("mode", &["hard", "spring", "slide", "rigid", "freeze"], "hard").doc("hard: exactly; spring: a zero-length spring; slide: on the rails ('along') or the surface ('onto'), free along them, exactly; rigid: the listed vertices move as one rigid body, free (a button, a bead), their distances kept exactly; to weld a group to an animated transform, attach its vertices hard instead; freeze: blended between simulated and the target's animated input by 'weight' (× 'vertex_weights'), so regions can be locked and released over time"))
+            .param(ParamSpec::floats("vertex_weights", &[]).doc("mode = freeze: a factor ≥ 0 on 'weight' per listed vertex, in the order of 'vertices' (empty: 1 for all)"))
             .param(ParamSpec::float("mass", 0.0).ge(0.0).unit("kg").doc("mode = rigid: mass added to the group, shared equally among its vertices (a button's)"))
             .param(ParamSpec::float("friction", 0.0).ge(0.0).doc("mode = slide: Coulomb friction coefficient μ along the rail or surface (0: frictionless)"))
             .param(ParamSpec::float("stiffness", 1e3).gt(0.0).unit("N/m").doc("spring stiffness (mode = spring)")),
@@ -293,10 +295,28 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             check_name(p)?;
             indices(p, "vertices")?;
             let mode = p.str("mode")?;
-            if p.bool("clamp")? && (mode == "slide" || mode == "rigid") {
+            if p.bool("clamp")? && matches!(mode, "slide" | "rigid" | "freeze") {
                 return Err(format!(
                     "param 'clamp': a clamp holds the direction at held vertices; with mode {mode} they are not held (use mode hard)"
                 ));
+            }
+            let weights = p.floats("vertex_weights")?;
+            if let Some(w) = weights.iter().find(|w| !(**w >= 0.0 && w.is_finite())) {
+                return Err(format!("param 'vertex_weights': {w} is not a weight (≥ 0)"));
+            }
+            if !weights.is_empty() {
+                if mode != "freeze" {
+                    return Err(format!(
+                        "param 'vertex_weights': only mode freeze reads weights (mode is {mode})"
+                    ));
+                }
+                if p.str("select")? != "vertices" || weights.len() != p.floats("vertices")?.len() {
+                    return Err(format!(
+                        "param 'vertex_weights': {} weights for {} listed vertices (one per entry of 'vertices', with select = vertices)",
+                        weights.len(),
+                        p.floats("vertices")?.len()
+                    ));
+                }
             }
             Ok(Kernel::from_fn(attachment))
         },
@@ -314,6 +334,16 @@ fn attachment(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
         "rigid" => AttachmentMode::Rigid {
             mass: p.f64("mass")?,
         },
+        "freeze" => {
+            let weight = cx.f64_input("weight")?;
+            if !(weight >= 0.0 && weight.is_finite()) {
+                return Err(NodeError::Input {
+                    port: "weight".into(),
+                    message: format!("a freeze weight must be ≥ 0, got {weight}"),
+                });
+            }
+            AttachmentMode::Freeze { weight }
+        }
         _ => AttachmentMode::Hard,
     };
     let along = cx
@@ -376,8 +406,14 @@ fn attachment(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
             target.name
         )));
     }
+    let freeze_weights = p.floats("vertex_weights")?;
     let mut e = SceneElement::new(p.str("name")?, ElementKind::Attachment, Geometry::None);
     e.secs.insert(sec);
+    if !freeze_weights.is_empty() {
+        e.secs.insert(FreezeWeights {
+            weights: freeze_weights,
+        });
+    }
     if sliding {
         if let Some(curves) = along {
             e.secs.insert(SlideRail { curves });

@@ -64,6 +64,8 @@ pub struct StepStart {
     scene: Arc<Scene>,
     /// u* (for one-way: the fluid projected without solids).
     u_star: Option<Arc<MacGrid>>,
+    /// The frozen vertices' inputs and weights over the step.
+    freeze: weft_sim::FreezeFrame,
 }
 
 /// What solids and fluid exchange in one iteration.
@@ -235,6 +237,7 @@ pub(super) fn setup(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeE
             solid: compiled.state.clone(),
             transforms: scene.iter().map(|e| e.transform).collect(),
             history: None,
+            inputs: compiled.freeze_inputs(&scene),
         },
         compiled,
         fluid,
@@ -261,6 +264,10 @@ pub(super) fn predict(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), Nod
         _ => Coupling::Newton,
     };
     let h = 1.0 / cx.context().fps;
+    let freeze = s
+        .compiled
+        .freeze_frame(&scene, &s.sim.inputs, frame, h)
+        .map_err(failed)?;
     let ws = ws.for_scene(&s.compiled);
     let mut st = settings(&s.compiled);
     st.method = method;
@@ -300,6 +307,7 @@ pub(super) fn predict(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), Nod
             to: scene.iter().map(|e| e.transform).collect(),
             scene,
             u_star,
+            freeze,
         }),
     );
     Ok(())
@@ -390,6 +398,7 @@ pub(super) fn solid(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeE
     };
     step.compiled
         .set_targets(&step.start.transforms, &step.to, 1.0, sys, targets);
+    step.compiled.set_freeze(&step.freeze, 1.0, sys);
     // The step's contacts are found afresh in every coupling iteration from the step's start
     // (and checked against that iteration's path): an iteration depends only on its inputs.
     let mut contact_stats = ContactFrameStats::default();
@@ -553,6 +562,7 @@ pub(super) fn update(_: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeE
             solid: solid.state.clone(),
             transforms: step.to.clone(),
             history: None,
+            inputs: step.freeze.end.clone(),
         },
         fluid,
         scene: step.scene.clone(),

@@ -1,8 +1,9 @@
-//! Animated transforms.
+//! Animated transforms, and geometry moved by a transform (an animated input for freeze
+//! attachments, a collider's shape placed once).
 
 use std::f64::consts::TAU;
 use weft_graph::{Kernel, NodeSpec, ParamSpec, Registry, RegistryError, TimeClass, Value};
-use weft_scene::Transform;
+use weft_scene::{Curves, Mesh, Transform};
 
 pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
     r.register(
@@ -35,5 +36,41 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                 Ok(())
             }))
         },
+    )?;
+    r.register(
+        NodeSpec::new("geo.transform", "a mesh moved by a transform (animated when the transform is): an animated input for mode = freeze, a shape placed in the scene")
+            .input("mesh", "mesh", "the mesh")
+            .input("transform", "transform", "the transform")
+            .output("mesh", "mesh", "the mesh's positions transformed (same triangles)"),
+        |_| {
+            Ok(Kernel::from_fn(|cx| {
+                let mut m = cx.input_as::<Mesh>("mesh")?;
+                let t = cx.input_as::<Transform>("transform")?;
+                move_points(&mut m.positions, &t);
+                cx.set("mesh", Value::new(m));
+                Ok(())
+            }))
+        },
+    )?;
+    r.register(
+        NodeSpec::new("geo.transform_curves", "curves moved by a transform (animated when the transform is): an animated input for hair with mode = freeze")
+            .input("curves", "curves", "the curves")
+            .input("transform", "transform", "the transform")
+            .output("curves", "curves", "the curves' positions transformed (same offsets)"),
+        |_| {
+            Ok(Kernel::from_fn(|cx| {
+                let mut c = cx.input_as::<Curves>("curves")?;
+                let t = cx.input_as::<Transform>("transform")?;
+                move_points(&mut c.positions, &t);
+                cx.set("curves", Value::new(c));
+                Ok(())
+            }))
+        },
     )
+}
+
+fn move_points(points: &mut [[f64; 3]], t: &Transform) {
+    for p in points {
+        *p = t.transform_point(&nalgebra::Point3::from(*p)).coords.into();
+    }
 }
