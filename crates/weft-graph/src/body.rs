@@ -63,6 +63,19 @@ struct Pre<'a> {
     params_ok: bool,
     params: Params,
     conns: Vec<Vec<Src>>,
+    /// Parameters driven by a connection: (input index, parameter name).
+    links: Vec<(usize, String)>,
+}
+
+/// Whether parameter `name` of `spec` can be driven by a connection: a float or an integer
+/// (one number, checked against its range at every evaluation).
+fn linkable(spec: &NodeSpec, name: &str) -> bool {
+    spec.param_spec(name).is_some_and(|ps| {
+        matches!(
+            ps.kind,
+            crate::spec::ParamKind::Float { .. } | crate::spec::ParamKind::Int { .. }
+        )
+    })
 }
 
 fn parse_ref_parts<'a>(
@@ -241,22 +254,72 @@ pub(crate) fn compile_body(
             params_ok,
             params: Params::from_map(values),
             conns: vec![Vec::new(); n_in],
+            links: Vec::new(),
         });
     }
     let by_id: HashMap<&str, usize> = pre.iter().enumerate().map(|(i, p)| (p.id, i)).collect();
     // Pass 2: connections.
     for i in 0..pre.len() {
-        let (id, decl, spec) = (pre[i].id, pre[i].decl, pre[i].spec.clone());
+        let (id, decl) = (pre[i].id, pre[i].decl);
+        let mut spec = pre[i].spec.clone();
         for (port, (refs, is_list)) in &decl.inputs {
             let path = || decl.at(&["inputs", port]);
             let field = format!("input '{port}'");
-            let Some(pi) = spec.input_index(port) else {
+            let pi = match spec.input_index(port) {
+                Some(pi) => Some(pi),
+                // A float or integer parameter connected like an input: a port of this node
+                // alone, whose value the parameter takes at every evaluation (animated
+                // parameters: a keyed curve wired to a stiffness).
+                None if linkable(&spec, port) => {
+                    if decl.params.contains_key(port) {
+                        d.push(
+                            Diagnostic::error(
+                                path(),
+                                format!(
+                                    "param '{port}' is both given a value and connected: give one"
+                                ),
+                            )
+                            .node(id)
+                            .field(field),
+                        );
+                        continue;
+                    }
+                    let mut s = (*spec).clone();
+                    s.inputs.push(crate::spec::PortSpec {
+                        name: port.clone(),
+                        ty: TypeRef::Named("float".into()),
+                        doc: format!("drives param '{port}' (its value at each frame)"),
+                        required: false,
+                        multi: false,
+                        default: None,
+                    });
+                    spec = Arc::new(s);
+                    pre[i].spec = spec.clone();
+                    pre[i].conns.push(Vec::new());
+                    let pi = spec.inputs.len() - 1;
+                    pre[i].links.push((pi, port.clone()));
+                    Some(pi)
+                }
+                None => None,
+            };
+            let Some(pi) = pi else {
                 let names: Vec<&str> = spec.inputs.iter().map(|p| p.name.as_str()).collect();
+                let linkable: Vec<&str> = spec
+                    .params
+                    .iter()
+                    .map(|p| p.name.as_str())
+                    .filter(|p| linkable(&spec, p))
+                    .collect();
+                let also = if linkable.is_empty() {
+                    String::new()
+                } else {
+                    format!("; or a number parameter: {}", linkable.join(", "))
+                };
                 d.push(
                     Diagnostic::error(
                         path(),
                         format!(
-                            "'{}' has no input '{port}' (inputs: {})",
+                            "'{}' has no input '{port}' (inputs: {}{also})",
                             spec.name,
                             names.join(", ")
                         ),
@@ -491,6 +554,7 @@ pub(crate) fn compile_body(
         let p = &pre[i];
         let mut slot = Slot::new(p.id.to_string(), p.spec.clone(), p.params.clone());
         slot.factory = Some(p.factory.clone());
+        slot.param_links = p.links.clone();
         let k = kernels[i].take().expect("all factories succeeded");
         slot.external = k.kernel_hash();
         slot.kernel = Some(k);

@@ -58,19 +58,92 @@ impl Graph {
             })?;
             params.set(param, v);
         }
-        if let Some(f) = self.slots[n].factory.clone() {
-            let names: Vec<&str> = values.iter().map(|(p, _)| *p).collect();
-            let k = f(&params).map_err(|m| {
-                Diagnostic::error(vec![], m)
-                    .node(node)
-                    .field(format!("param '{}'", names.join("', '")))
-            })?;
+        let kernel = match self.slots[n].factory.clone() {
+            Some(f) => {
+                let names: Vec<&str> = values.iter().map(|(p, _)| *p).collect();
+                Some(f(&params).map_err(|m| {
+                    Diagnostic::error(vec![], m)
+                        .node(node)
+                        .field(format!("param '{}'", names.join("', '")))
+                })?)
+            }
+            None => None,
+        };
+        // What the node gave at the frames downstream states were computed from, before the
+        // change (a keyed curve: the frames before its first changed key stay valid).
+        let before = self.frames_to_compare(n).map(|(frames, fps)| {
+            let hashes = self.output_hashes(n, &frames, fps);
+            (frames, fps, hashes)
+        });
+        if let Some(k) = kernel {
             self.slots[n].external = k.kernel_hash();
             self.slots[n].kernel = Some(k);
         }
         self.slots[n].params = Arc::new(params);
-        self.mark_dirty(n);
+        let from = match before {
+            Some((frames, fps, old)) => {
+                let s = &mut self.slots[n];
+                s.cache = None;
+                s.hash = None;
+                s.dirty = true;
+                let new = self.output_hashes(n, &frames, fps);
+                frames
+                    .iter()
+                    .zip(old.iter().zip(&new))
+                    .find(|(_, (a, b))| a.is_none() || a != b)
+                    .map_or_else(|| frames.last().map_or(i64::MIN, |f| f + 1), |(f, _)| *f)
+            }
+            None => i64::MIN,
+        };
+        self.mark_dirty_from(n, from);
         Ok(())
+    }
+
+    /// For a time-dependent computed node whose downstream stateful nodes hold states: the
+    /// frames those states span (from the earliest to the latest) and their frame rate.
+    /// `None` when nothing downstream could be kept.
+    fn frames_to_compare(&self, n: usize) -> Option<(Vec<i64>, f64)> {
+        let s = &self.slots[n];
+        if s.eff_static || !matches!(s.kernel, Some(crate::node::Kernel::Compute(_))) {
+            return None;
+        }
+        let (mut lo, mut hi, mut fps) = (i64::MAX, i64::MIN, None);
+        let mut seen = vec![false; self.slots.len()];
+        let mut stack = s.downstream.clone();
+        while let Some(m) = stack.pop() {
+            if std::mem::replace(&mut seen[m], true) {
+                continue;
+            }
+            let d = &self.slots[m];
+            if let (Some(&a), Some(&b)) = (
+                d.checkpoints.frames().first(),
+                d.checkpoints.frames().last(),
+            ) {
+                // States at another frame rate are recomputed anyway.
+                if *fps.get_or_insert(d.ckpt_fps) != d.ckpt_fps {
+                    return None;
+                }
+                lo = lo.min(a);
+                hi = hi.max(b);
+            }
+            stack.extend(d.downstream.iter().copied());
+        }
+        // Comparing costs two evaluations of the node a frame: bounded.
+        (lo <= hi && hi - lo < 100_000).then(|| ((lo..=hi).collect(), fps.unwrap_or(24.0)))
+    }
+
+    /// Hashes of slot `n`'s outputs at each of `frames` (None where it fails: a frame that
+    /// failed before or after a change counts as changed).
+    fn output_hashes(&mut self, n: usize, frames: &[i64], fps: f64) -> Vec<Option<u128>> {
+        frames
+            .iter()
+            .map(|&f| {
+                let ctx = crate::engine::Context::at(f, fps);
+                (0..self.slots[n].spec.outputs.len())
+                    .map(|p| self.pull_slot(n, p, ctx).ok().map(|v| self.value_hash(&v)))
+                    .try_fold(0u128, |acc, h| h.map(|h| acc.rotate_left(7) ^ h))
+            })
+            .collect()
     }
 
     /// Sets a graph input's value and dirties its downstream.

@@ -117,7 +117,7 @@ pub(crate) struct Slot {
     pub dirty: bool,
     pub(crate) cache: Option<Cached>,
     pub(crate) checkpoints: crate::checkpoints::Checkpoints,
-    ckpt_fps: f64,
+    pub(crate) ckpt_fps: f64,
     pub(crate) hash: Option<u128>,
     /// Hash of a source value or of what the kernel adds.
     pub external: u128,
@@ -126,6 +126,8 @@ pub(crate) struct Slot {
     pub(crate) feeds: Vec<Option<crate::feed::Samples>>,
     /// Hash of the feeds (zero when none).
     pub(crate) feed_hash: u128,
+    /// Parameters driven by connections: (input index, parameter name).
+    pub(crate) param_links: Vec<(usize, String)>,
     pub(crate) stats: NodeStats,
 }
 
@@ -154,6 +156,7 @@ impl Slot {
             external: 0,
             feeds: Vec::new(),
             feed_hash: 0,
+            param_links: Vec::new(),
             stats: NodeStats::default(),
         }
     }
@@ -478,16 +481,66 @@ impl Graph {
         Ok(self.slots[src].cache.as_ref().map(|c| c.outputs[p].clone()))
     }
 
-    pub(crate) fn cx(&mut self, n: usize, ctx: Context) -> EvalCx<'_> {
-        let params = self.slots[n].params.clone();
+    /// The evaluation context of slot `n` at `ctx`: its parameters, with those driven by
+    /// connections read at `ctx` (checked as at load, factory included).
+    pub(crate) fn cx(&mut self, n: usize, ctx: Context) -> Result<EvalCx<'_>, NodeError> {
+        let params = if self.slots[n].param_links.is_empty() {
+            self.slots[n].params.clone()
+        } else {
+            self.linked_params(n, ctx)?
+        };
         let outputs = vec![None; self.slots[n].spec.outputs.len()];
-        EvalCx {
+        Ok(EvalCx {
             graph: self,
             node: n,
             ctx,
             params,
             outputs,
+        })
+    }
+
+    /// Slot `n`'s parameters with each connected one set to its connection's value at `ctx`,
+    /// validated against its spec (range, kind) and by the node's factory, so a value that
+    /// would be refused in the file is refused here, naming the parameter.
+    fn linked_params(&mut self, n: usize, ctx: Context) -> Result<Arc<Params>, NodeError> {
+        let links = self.slots[n].param_links.clone();
+        let mut params = (*self.slots[n].params).clone();
+        for (port, name) in &links {
+            let fail = |message: String| NodeError::Input {
+                port: name.clone(),
+                message: format!("param '{name}' from its connection: {message}"),
+            };
+            let Some(x) = self
+                .read_input(n, *port, 0, ctx)?
+                .and_then(|v| v.get::<f64>().copied())
+            else {
+                return Err(fail("not connected to a number".into()));
+            };
+            let spec = self.slots[n].spec.clone();
+            let ps = spec
+                .param_spec(name)
+                .expect("links are made for declared parameters");
+            let json = match ps.kind {
+                crate::spec::ParamKind::Int { .. } if x.fract() == 0.0 && x.abs() < 9e15 => {
+                    serde_json::json!(x as i64)
+                }
+                crate::spec::ParamKind::Int { .. } => {
+                    return Err(fail(format!("{x} is not an integer")));
+                }
+                _ => match serde_json::Number::from_f64(x) {
+                    Some(v) => serde_json::Value::Number(v),
+                    None => return Err(fail(format!("{x} is not a number"))),
+                },
+            };
+            let v = crate::params::check_param(ps, &json).map_err(fail)?;
+            params.set(name, v);
         }
+        if let Some(f) = self.slots[n].factory.clone() {
+            f(&params).map_err(|m| {
+                NodeError::Failed(format!("with its connected parameters at this frame: {m}"))
+            })?;
+        }
+        Ok(Arc::new(params))
     }
 
     fn interrupted(&self, n: usize, frame: i64) -> Result<(), EvalError> {
@@ -523,12 +576,13 @@ impl Graph {
                 .take()
                 .expect("non-source slots have a kernel");
             let r = match &mut kernel {
-                Kernel::Compute(k) => {
-                    let mut cx = self.cx(n, ctx);
-                    k.compute(&mut cx)
+                Kernel::Compute(k) => match self.cx(n, ctx) {
+                    Ok(mut cx) => k
+                        .compute(&mut cx)
                         .map(|()| cx.outputs)
-                        .map_err(|e| (e, ctx.frame))
-                }
+                        .map_err(|e| (e, ctx.frame)),
+                    Err(e) => Err((e, ctx.frame)),
+                },
                 Kernel::Step(k) => self.eval_stateful(n, k.as_mut(), ctx),
             };
             self.slots[n].kernel = Some(kernel);
@@ -624,7 +678,7 @@ impl Graph {
         let (mut at, mut state) = match from_disk.or(resume) {
             Some(r) => r,
             None => {
-                let mut cx = self.cx(n, ctx.with_frame(start));
+                let mut cx = self.cx(n, ctx.with_frame(start)).map_err(|e| (e, start))?;
                 let s = k.init(&mut cx).map_err(|e| (e, start))?;
                 self.keep(n, k, start, &s, start);
                 (start, s)
@@ -635,19 +689,26 @@ impl Graph {
                 return Err((NodeError::Interrupted(self.interrupt.reason()), at + 1));
             }
             at += 1;
-            let mut cx = self.cx(n, ctx.with_frame(at));
+            let mut cx = self.cx(n, ctx.with_frame(at)).map_err(|e| (e, at))?;
             state = k.step(&state, &mut cx).map_err(|e| (e, at))?;
             self.keep(n, k, at, &state, start);
             self.slots[n].stats.steps += 1;
             self.save_to_disk(n, k, at, &state, ctx.fps);
         }
-        let mut cx = self.cx(n, ctx);
+        let mut cx = self.cx(n, ctx).map_err(|e| (e, ctx.frame))?;
         k.outputs(&state, &mut cx).map_err(|e| (e, ctx.frame))?;
         Ok(cx.outputs)
     }
 
     /// Pushes dirtiness from `n` to everything downstream; drops caches, hashes, checkpoints.
     pub(crate) fn mark_dirty(&mut self, n: usize) {
+        self.mark_dirty_from(n, i64::MIN);
+    }
+
+    /// [`Self::mark_dirty`] for a change that leaves `n`'s outputs at frames before `from`
+    /// as they were: downstream stateful nodes keep their states at those frames (a state at
+    /// frame k depends on its inputs at frames up to k only).
+    pub(crate) fn mark_dirty_from(&mut self, n: usize, from: i64) {
         let generation = self.next_mark();
         let mut stack = vec![n];
         while let Some(m) = stack.pop() {
@@ -659,7 +720,11 @@ impl Graph {
             s.dirty = true;
             s.cache = None;
             s.hash = None;
-            s.checkpoints.clear();
+            if from == i64::MIN {
+                s.checkpoints.clear();
+            } else {
+                s.checkpoints.retain_up_to(from.saturating_sub(1));
+            }
             stack.extend(s.downstream.iter().copied());
         }
     }

@@ -86,13 +86,13 @@ impl Graph {
             let initial = match self.slots[n].checkpoints.get(&start) {
                 Some(s) => s.clone(),
                 None => {
-                    let mut cx = self.cx(n, ctx.with_frame(start));
+                    let mut cx = self.cx(n, ctx.with_frame(start)).map_err(|e| (e, start))?;
                     let s = k.init(&mut cx).map_err(|e| (e, start))?;
                     self.keep(n, k, start, &s, start);
                     s
                 }
             };
-            let mut cx = self.cx(n, ctx.with_frame(frame));
+            let mut cx = self.cx(n, ctx.with_frame(frame)).map_err(|e| (e, frame))?;
             let state = k
                 .load_state(payload, &initial, &mut cx)
                 .map_err(|e| (e, frame))?;
