@@ -17,6 +17,12 @@ pub trait Sec: Any + Send + Sync + Debug {
     fn describe(&self) -> serde_json::Value;
     /// Upcast for typed access.
     fn as_any(&self) -> &dyn Any;
+    /// Whether `other` is an SEC of the same type with the same values (solvers re-read SECs
+    /// whose values an animated parameter changed). The default answers false: a solver
+    /// then rebuilds from it whenever it is a new value.
+    fn same(&self, _other: &dyn Sec) -> bool {
+        false
+    }
 }
 
 /// The SECs of one element: at most one per type, shared (`Arc`) so copying an element is cheap.
@@ -44,6 +50,16 @@ impl SecSet {
     pub fn iter(&self) -> impl Iterator<Item = &Arc<dyn Sec>> {
         self.map.values()
     }
+    /// Whether both sets hold the same SEC types with the same values (shared ones are not
+    /// compared further).
+    pub fn same_as(&self, other: &SecSet) -> bool {
+        self.map.len() == other.map.len()
+            && self
+                .map
+                .iter()
+                .zip(&other.map)
+                .all(|((ka, a), (kb, b))| ka == kb && (Arc::ptr_eq(a, b) || a.same(&**b)))
+    }
     /// Number of SECs.
     pub fn len(&self) -> usize {
         self.map.len()
@@ -65,6 +81,9 @@ macro_rules! sec_impl {
             }
             fn as_any(&self) -> &dyn Any {
                 self
+            }
+            fn same(&self, other: &dyn Sec) -> bool {
+                other.as_any().downcast_ref::<Self>() == Some(self)
             }
         }
     };
@@ -577,5 +596,25 @@ mod tests {
             s.types().collect::<Vec<_>>(),
             vec!["density", "discrete_shell"]
         );
+    }
+
+    #[test]
+    fn sets_compare_by_value_not_by_sharing() {
+        let make = |t: f64| {
+            let mut s = SecSet::default();
+            s.insert(DiscreteShell {
+                thickness: t,
+                ..Default::default()
+            });
+            s.insert(Density::default());
+            s
+        };
+        let a = make(1e-3);
+        assert!(a.same_as(&a.clone()), "shared");
+        assert!(a.same_as(&make(1e-3)), "equal values, separate SECs");
+        assert!(!a.same_as(&make(2e-3)), "a value differs");
+        let mut fewer = SecSet::default();
+        fewer.insert(DiscreteShell::default());
+        assert!(!a.same_as(&fewer), "a type is missing");
     }
 }

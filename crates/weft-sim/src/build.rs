@@ -41,6 +41,20 @@ pub struct Compiled {
     /// Contacts with colliders (None without `behavior.collision` and a collision element:
     /// no contact machinery is built).
     pub collisions: Option<crate::CollisionSetup>,
+    /// The scene it was compiled from: the start frame's geometry, with the SECs whose values
+    /// it holds (a later frame's SECs are compared with these: [`Compiled::with_params`]).
+    pub source: std::sync::Arc<Vec<SceneElement>>,
+    /// The Behavior tree it was compiled with.
+    pub tree: BehaviorTree,
+}
+
+/// Whether two trees hold the same Behaviors with the same parameters.
+fn same_tree(a: &BehaviorTree, b: &BehaviorTree) -> bool {
+    a.behaviors.len() == b.behaviors.len()
+        && a.behaviors
+            .iter()
+            .zip(&b.behaviors)
+            .all(|(x, y)| std::sync::Arc::ptr_eq(x, y) || format!("{x:?}") == format!("{y:?}"))
 }
 
 pub(crate) fn lerp(a: Option<Transform>, b: Option<Transform>, s: f64) -> Option<Transform> {
@@ -51,6 +65,55 @@ pub(crate) fn lerp(a: Option<Transform>, b: Option<Transform>, s: f64) -> Option
 }
 
 impl Compiled {
+    /// For animated parameters: the system compiled again when `scene` (the scene at
+    /// `frame`) carries SECs whose values differ from the ones compiled, or `tree` (None: the
+    /// one compiled) has Behaviors whose parameters do; `None` when nothing differs. Rest
+    /// shapes, attachments' frames and everything else geometric stay the start frame's
+    /// (the new system is compiled from the start scene with the frame's SECs), and a change
+    /// that would change the vertices simulated is refused.
+    pub fn with_params(
+        &self,
+        scene: &[SceneElement],
+        tree: Option<&BehaviorTree>,
+        frame: i64,
+        max_bytes: Option<u64>,
+    ) -> Result<Option<Compiled>, SimError> {
+        let tree_same = tree.is_none_or(|t| same_tree(t, &self.tree));
+        let secs_same = scene.len() == self.source.len()
+            && scene
+                .iter()
+                .zip(self.source.iter())
+                .all(|(a, b)| a.secs.same_as(&b.secs));
+        if tree_same && secs_same {
+            return Ok(None);
+        }
+        self.check_scene(scene, frame)?;
+        let next: Vec<SceneElement> = self
+            .source
+            .iter()
+            .zip(scene)
+            .map(|(s, e)| {
+                let mut s = s.clone();
+                s.secs = e.secs.clone();
+                s
+            })
+            .collect();
+        let c = compile_within(&next, tree.unwrap_or(&self.tree), max_bytes)?;
+        if c.state.x.len() != self.state.x.len()
+            || c.ranges != self.ranges
+            || c.freezes.len() != self.freezes.len()
+        {
+            return Err(SimError::SceneChanged(format!(
+                "frame {frame}: an animated parameter changed what is simulated ({} vertices, {} frozen, before: {}, {}); animate values, not structure",
+                c.state.x.len(),
+                c.freezes.len(),
+                self.state.x.len(),
+                self.freezes.len()
+            )));
+        }
+        Ok(Some(c))
+    }
+
     /// The scene with simulated elements moved to `state` (and a `velocity` channel set).
     pub fn scene_at(&self, scene: &[SceneElement], state: &State) -> Vec<SceneElement> {
         scene
@@ -354,5 +417,7 @@ pub fn compile_within(
         drag_elements: b.drag_elements,
         fluid,
         collisions: b.collisions,
+        source: std::sync::Arc::new(scene.to_vec()),
+        tree: tree.clone(),
     })
 }

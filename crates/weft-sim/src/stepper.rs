@@ -168,6 +168,24 @@ impl SolidStepper {
         })
     }
 
+    /// Steps `compiled` from now on (the same scene with other parameter values: see
+    /// [`Compiled::with_params`]). The integrator's pattern and symbolic factorization are
+    /// kept when the system's structure (vertices, held vertices, rigid groups, the
+    /// elements' stencils) is the same; contacts are rebuilt on the next frame.
+    pub fn set_compiled(&mut self, compiled: Arc<Compiled>) -> Result<(), SimError> {
+        if !same_structure(&self.compiled.system, &compiled.system) {
+            self.integrator = Integrator::new_within(&compiled.system, self.settings.max_bytes)
+                .map_err(|e| match e {
+                    StepError::TooLarge { .. } => SimError::TooLarge(e.to_string()),
+                    e => SimError::Unsupported(format!("setting up the solver again: {e}")),
+                })?;
+        }
+        self.system = compiled.system.clone();
+        self.compiled = compiled;
+        self.contacts = None;
+        Ok(())
+    }
+
     /// Sets (or clears) the check the integrator asks once per Newton iteration; when it
     /// answers true, [`Self::advance`] fails with [`SimError::Interrupted`].
     pub fn set_stop(&mut self, stop: Option<weft_solid::StopCheck>) {
@@ -364,4 +382,26 @@ impl SolidStepper {
     pub fn scene_at(&self, scene: &[SceneElement], state: &SimState) -> Vec<SceneElement> {
         self.compiled.scene_at(scene, &state.solid)
     }
+}
+
+/// Whether an integrator built for `a` serves `b`: the same vertices, held vertices, rigid
+/// groups and element stencils, in the same order.
+fn same_structure(a: &SolidSystem, b: &SolidSystem) -> bool {
+    let stencils = |s: &SolidSystem| {
+        let mut v = Vec::new();
+        s.elements.for_each(|e| {
+            v.push(u32::MAX);
+            v.extend_from_slice(e.vertices());
+        });
+        v
+    };
+    a.mass.len() == b.mass.len()
+        && a.pinned == b.pinned
+        && a.rigid.len() == b.rigid.len()
+        && a.rigid
+            .iter()
+            .zip(&b.rigid)
+            .all(|(x, y)| x.vertices == y.vertices)
+        && a.elements.len() == b.elements.len()
+        && stencils(a) == stencils(b)
 }

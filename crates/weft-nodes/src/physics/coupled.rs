@@ -138,10 +138,14 @@ impl Workspace {
     fn for_scene(&mut self, c: &Arc<Compiled>) -> &mut Self {
         if self.compiled.as_ref().is_none_or(|o| !Arc::ptr_eq(o, c)) {
             let interrupt = self.interrupt.take();
+            // The log is the node's report across frames (an animated parameter compiles the
+            // scene again at every frame it changes).
+            let log = std::mem::take(&mut self.log);
             *self = Workspace {
                 compiled: Some(c.clone()),
                 system: Some(c.system.clone()),
                 targets: c.state.x.clone(),
+                log,
                 ..Default::default()
             };
             self.stepper
@@ -258,25 +262,34 @@ pub(super) fn predict(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), Nod
     let scene = Arc::new(get::<Scene>(&scene, "scene")?.clone());
     let frame = cx.frame();
     s.compiled.check_scene(&scene, frame).map_err(failed)?;
+    // Animated SEC parameters (stiffness, drag, friction, the fluid's): read at every frame;
+    // the Behavior tree is the one coupled.setup compiled.
+    let compiled = match s
+        .compiled
+        .with_params(&scene, None, frame, Some(cx.memory_budget()))
+        .map_err(failed)?
+    {
+        Some(c) => Arc::new(c),
+        None => s.compiled.clone(),
+    };
     let method = match cx.params().str("method")? {
         "one_way" => Coupling::OneWay,
         "staggered" => Coupling::Staggered,
         _ => Coupling::Newton,
     };
     let h = 1.0 / cx.context().fps;
-    let freeze = s
-        .compiled
+    let freeze = compiled
         .freeze_frame(&scene, &s.sim.inputs, frame, h)
         .map_err(failed)?;
-    let ws = ws.for_scene(&s.compiled);
-    let mut st = settings(&s.compiled);
+    let ws = ws.for_scene(&compiled);
+    let mut st = settings(&compiled);
     st.method = method;
     st.viscosity = cx.params().bool("viscosity")?;
     st.pressure = PressureSolve {
         tolerance: cx.params().f64("pressure_tolerance")?,
         max_iterations: cx.params().i64("pressure_max_iterations")?.max(1) as usize,
     };
-    let u_star = match (&s.fluid, &s.compiled.fluid) {
+    let u_star = match (&s.fluid, &compiled.fluid) {
         (Some(g), Some(spec)) => {
             let mut out = MacGrid::new(g.domain.clone());
             let t = std::time::Instant::now();
@@ -300,7 +313,7 @@ pub(super) fn predict(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), Nod
     cx.set(
         "step",
         Value::new(StepStart {
-            compiled: s.compiled.clone(),
+            compiled: compiled.clone(),
             h,
             method,
             start: s.sim.clone(),

@@ -2,9 +2,10 @@
 //!
 //! At the start frame it compiles (scene, Behavior tree) into a solid system; each later frame
 //! is one step of the [`SolidStepper`] from the previous frame's state, reading the scene at
-//! the new frame (so attachments follow animated transforms). The state checkpointed per frame
-//! is the simulation state plus the output scene; the compiled system rides along (shared), so
-//! resuming from any checkpoint continues exactly.
+//! the new frame (so attachments follow animated transforms), and its SECs and Behavior tree
+//! there: values an animated parameter changed compile the system's coefficients again. The
+//! state checkpointed per frame is the simulation state plus the output scene; the compiled
+//! system rides along (shared), so resuming from any checkpoint continues exactly.
 
 use super::types::Scene;
 use std::collections::VecDeque;
@@ -80,7 +81,16 @@ impl SolidSolver {
             .stepper
             .as_ref()
             .is_none_or(|s| !std::ptr::eq(s.compiled(), &**compiled));
-        if fresh {
+        // The same scene with other parameter values (an animated parameter): the integrator
+        // is kept when the structure is.
+        if let (true, Some(s)) = (fresh, self.stepper.as_mut())
+            && s.compiled().source.len() == compiled.source.len()
+            && s.compiled().ranges == compiled.ranges
+            && s.compiled().state.x.len() == compiled.state.x.len()
+        {
+            s.set_compiled(compiled.clone())
+                .map_err(|e| NodeError::Failed(e.to_string()))?;
+        } else if fresh {
             self.stepper = Some(
                 SolidStepper::new(
                     compiled.clone(),
@@ -141,9 +151,20 @@ impl Step for SolidSolver {
             .get::<SolverState>()
             .ok_or_else(|| NodeError::Failed("the state is not a solver.solid state".into()))?;
         let scene = scene_input(cx)?;
+        let tree = cx.input_as::<BehaviorTree>("tree")?;
         let (frame, dt) = (cx.frame(), 1.0 / cx.context().fps);
+        // Animated parameters: SEC and Behavior values are read at every frame; a change
+        // compiles the system's coefficients again (structure and rest shapes stay).
+        let compiled = match prev
+            .compiled
+            .with_params(&scene, Some(&tree), frame, Some(cx.memory_budget()))
+            .map_err(|e| NodeError::Failed(e.to_string()))?
+        {
+            Some(c) => Arc::new(c),
+            None => prev.compiled.clone(),
+        };
         let params = cx.params().clone();
-        let stepper = self.stepper(&prev.compiled, &params, cx.interrupt())?;
+        let stepper = self.stepper(&compiled, &params, cx.interrupt())?;
         let (sim, stats) = stepper
             .advance(&prev.sim, &scene, frame, dt)
             .map_err(|e| match e {
@@ -166,7 +187,7 @@ impl Step for SolidSolver {
         self.totals[1] += stats.newton_iterations as u64;
         self.frames.push_back((frame, stats));
         Ok(Value::new(SolverState {
-            compiled: prev.compiled.clone(),
+            compiled,
             sim,
             scene: Value::new(out),
         }))
