@@ -102,6 +102,12 @@ pub struct DiscreteShell {
     pub bend_scale: f64,
     /// Mass-proportional damping [1/s] (default 0).
     pub damping: f64,
+    /// Bend angle dropoff d ∈ [0, 1] (default 0: none): the bending stiffness at curvature κ
+    /// is the plain one times 1 − d + d (κ/κ₀)² (soft for small bends, stiffer for large:
+    /// `weft_solid::energy::Dropoff`).
+    pub bend_dropoff: f64,
+    /// κ₀ of the dropoff [1/m] (default 20: a bend of 5 cm radius has the plain stiffness).
+    pub dropoff_curvature: f64,
     /// Channel holding rest positions (default `rest`; the initial positions when absent).
     pub rest_channel: String,
     /// Stiffness multiplier along the warp (default 1).
@@ -122,6 +128,8 @@ impl Default for DiscreteShell {
             thickness: 1e-3,
             bend_scale: 1.0,
             damping: 0.0,
+            bend_dropoff: 0.0,
+            dropoff_curvature: 20.0,
             rest_channel: "rest".into(),
             warp_scale: 1.0,
             weft_scale: 1.0,
@@ -147,6 +155,12 @@ pub struct Rod {
     pub bend_scale: f64,
     /// Mass-proportional damping [1/s] (default 0).
     pub damping: f64,
+    /// Bend angle dropoff d ∈ [0, 1] (default 0: none): the bending stiffness at curvature κ
+    /// is the plain one times 1 − d + d (κ/κ₀)² (soft for small bends, stiffer for large:
+    /// `weft_solid::energy::Dropoff`).
+    pub bend_dropoff: f64,
+    /// κ₀ of the dropoff [1/m] (default 20: a bend of 5 cm radius has the plain stiffness).
+    pub dropoff_curvature: f64,
     /// Channel holding rest positions (default `rest`; the initial positions when absent).
     pub rest_channel: String,
 }
@@ -160,6 +174,8 @@ impl Default for Rod {
             bend_stiffness: 0.0,
             bend_scale: 1.0,
             damping: 0.0,
+            bend_dropoff: 0.0,
+            dropoff_curvature: 20.0,
             rest_channel: "rest".into(),
         }
     }

@@ -57,6 +57,18 @@ pub(crate) fn non_negative(element: &str, field: &str, x: f64) -> Result<(), Sim
     }
 }
 
+/// Checks a bend angle dropoff: d in [0, 1], κ₀ > 0.
+fn dropoff_ok(element: &str, sec: &str, d: f64, kappa0: f64) -> Result<(), SimError> {
+    if !(0.0..=1.0).contains(&d) {
+        return Err(bad(
+            element,
+            &format!("{sec}.bend_dropoff"),
+            format!("must be in [0, 1], got {d}"),
+        ));
+    }
+    positive(element, &format!("{sec}.dropoff_curvature"), kappa0)
+}
+
 fn v3(p: [f64; 3]) -> Vector3<f64> {
     Vector3::new(p[0], p[1], p[2])
 }
@@ -122,6 +134,12 @@ impl Behavior for DiscreteShellMaterial {
             }
             non_negative(name, "discrete_shell.bend_scale", shell.bend_scale)?;
             non_negative(name, "discrete_shell.damping", shell.damping)?;
+            dropoff_ok(
+                name,
+                "discrete_shell",
+                shell.bend_dropoff,
+                shell.dropoff_curvature,
+            )?;
             let rest = rest_positions(e, &shell.rest_channel)?;
             let off = b.offset(ei).expect("cloth elements have a vertex range");
             // A face listed twice (double-sided exports) would double mass and stiffness and
@@ -216,16 +234,20 @@ impl Behavior for DiscreteShellMaterial {
                         bending.non_manifold_edges
                     ));
                 }
+                let (dropoff, kappa0) = (shell.bend_dropoff, shell.dropoff_curvature);
                 for mut el in bending.vertices {
                     el.map_vertices(global);
+                    el.set_dropoff(dropoff, kappa0);
                     b.system.elements.shells.push(el);
                 }
                 for mut el in bending.triangles {
                     el.map_vertices(global);
+                    el.set_dropoff(dropoff, kappa0);
                     b.system.elements.midedges.push(el);
                 }
                 for mut el in bending.clamped_vertices {
                     el.map_vertices(global);
+                    el.set_dropoff(dropoff, kappa0);
                     b.system.elements.shell_clamps.push(el);
                 }
             }
@@ -261,6 +283,7 @@ impl Behavior for RodMaterial {
             positive(name, "rod.stretch_scale", rod.stretch_scale)?;
             positive(name, "density.line_density", density.line_density)?;
             non_negative(name, "rod.damping", rod.damping)?;
+            dropoff_ok(name, "rod", rod.bend_dropoff, rod.dropoff_curvature)?;
             let rest = rest_positions(e, &rod.rest_channel)?;
             let off = b.offset(ei).expect("hair elements have a vertex range");
             let area = std::f64::consts::PI * rod.radius * rod.radius;
@@ -291,11 +314,14 @@ impl Behavior for RodMaterial {
                         let vor = 0.5 * (e0.norm() + e1.norm());
                         let kb = 2.0 * e0.cross(&e1).norm() / (e0.norm() * e1.norm() + e0.dot(&e1));
                         let v = (r.start + s) as u32 + off;
-                        b.system.elements.bends.push(RodBend {
+                        let mut bend = RodBend {
                             v: [v - 1, v, v + 1],
                             k: ei_bend / (2.0 * vor),
                             rest: kb,
-                        });
+                            dropoff: None,
+                        };
+                        bend.set_dropoff(rod.bend_dropoff, rod.dropoff_curvature, vor);
+                        b.system.elements.bends.push(bend);
                     }
                 }
             }

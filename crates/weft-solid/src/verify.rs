@@ -84,6 +84,7 @@ pub fn rod(
                 v: [i - 1, i, i + 1],
                 k: ei / (2.0 * l),
                 rest: 0.0,
+                dropoff: None,
             });
         }
     }

@@ -69,7 +69,10 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                 .gt(0.0)
                 .doc("shear stiffness multiplier"),
             ParamSpec::vec3("warp_direction", d.warp_direction).doc("warp direction in rest space"),
-        ],
+        ]
+        .into_iter()
+        .chain(dropoff_params(d.bend_dropoff, d.dropoff_curvature))
+        .collect(),
         |p| {
             Ok(DiscreteShell {
                 youngs_modulus: p.f64("youngs_modulus")?,
@@ -77,6 +80,8 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                 thickness: p.f64("thickness")?,
                 bend_scale: p.f64("bend_scale")?,
                 damping: p.f64("damping")?,
+                bend_dropoff: p.f64("bend_dropoff")?,
+                dropoff_curvature: p.f64("dropoff_curvature")?,
                 rest_channel: p.str("rest_channel")?.to_string(),
                 warp_scale: p.f64("warp_scale")?,
                 weft_scale: p.f64("weft_scale")?,
@@ -115,7 +120,10 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                 .doc("mass-proportional damping"),
             ParamSpec::string("rest_channel", &d.rest_channel)
                 .doc("channel with rest positions (initial positions when absent)"),
-        ],
+        ]
+        .into_iter()
+        .chain(dropoff_params(d.bend_dropoff, d.dropoff_curvature))
+        .collect(),
         |p| {
             Ok(Rod {
                 youngs_modulus: p.f64("youngs_modulus")?,
@@ -124,6 +132,8 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                 bend_stiffness: p.f64("bend_stiffness")?,
                 bend_scale: p.f64("bend_scale")?,
                 damping: p.f64("damping")?,
+                bend_dropoff: p.f64("bend_dropoff")?,
+                dropoff_curvature: p.f64("dropoff_curvature")?,
                 rest_channel: p.str("rest_channel")?.to_string(),
             })
         },
@@ -250,4 +260,18 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         },
         r,
     )
+}
+
+/// The bend angle dropoff's two parameters (Discrete Shell and Rod SECs alike).
+fn dropoff_params(d: f64, kappa0: f64) -> [ParamSpec; 2] {
+    [
+        ParamSpec::float("bend_dropoff", d)
+            .ge(0.0)
+            .le(1.0)
+            .doc("bend angle dropoff d: bending stiffness × (1 − d + d (κ/κ₀)²) at curvature κ (soft for small bends, stiffer for large; 0: none)"),
+        ParamSpec::float("dropoff_curvature", kappa0)
+            .gt(0.0)
+            .unit("1/m")
+            .doc("κ₀ of the dropoff: the curvature (1/radius) at which the plain stiffness holds"),
+    ]
 }

@@ -67,6 +67,10 @@ pub struct MidedgeBend {
     rest: [f64; 3],
     /// The condensed stiffness matrix B [J] (rows and columns of free edges are zero).
     b: [[f64; 3]; 3],
+    /// Its energy at unit curvature in a cylinder, doubled: Ā (1 − ν) D/2 [J·m].
+    unit: f64,
+    /// Bend angle dropoff, if any ([`super::Dropoff`]).
+    dropoff: Option<super::Dropoff>,
 }
 
 impl MidedgeBend {
@@ -139,7 +143,16 @@ impl MidedgeBend {
             wing,
             rest: rest_angle,
             b,
+            // A cylinder of curvature κ has ‖dev II‖² = κ²/2: E = ½ κ² · Ā (1 − ν) D/2.
+            unit: 0.5 * (rest[1] - rest[0]).cross(&(rest[2] - rest[0])).norm() * (1.0 - nu) * d
+                / 2.0,
+            dropoff: None,
         }
+    }
+
+    /// Sets the bend angle dropoff d ∈ [0, 1] at reference curvature κ₀ (d = 0: none).
+    pub fn set_dropoff(&mut self, d: f64, kappa0: f64) {
+        self.dropoff = super::Dropoff::new(d, kappa0, self.unit);
     }
 
     /// The condensed stiffness matrix B (energy ½ φᵀBφ) [J].
@@ -199,7 +212,8 @@ impl Element for MidedgeBend {
         &self.v[..self.len as usize]
     }
     fn energy(&self, x: &[Vector3<f64>]) -> f64 {
-        self.quad(&self.angles(x)).1
+        let e = self.quad(&self.angles(x)).1;
+        self.dropoff.map_or(e, |dr| dr.energy(e))
     }
     #[allow(clippy::needless_range_loop)] // stencil index arithmetic
     fn eval(&self, x: &[Vector3<f64>], project: bool, out: &mut Local) {
@@ -259,6 +273,9 @@ impl Element for MidedgeBend {
             }
         }
         out.symmetrize();
+        if let Some(dr) = self.dropoff {
+            dr.apply(out);
+        }
     }
 }
 

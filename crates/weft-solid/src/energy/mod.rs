@@ -2,6 +2,7 @@
 //! gradient and Hessian (optionally projected to PSD) into a [`Local`] buffer, so assembly
 //! never allocates.
 
+mod dropoff;
 mod hinge;
 mod membrane;
 mod midedge;
@@ -10,6 +11,7 @@ mod shell;
 mod shell_clamp;
 mod spring;
 
+pub use dropoff::Dropoff;
 pub use hinge::{Hinge, dihedral_angle, dihedral_gradient};
 pub use membrane::{Membrane, MembraneMaterial};
 pub use midedge::MidedgeBend;

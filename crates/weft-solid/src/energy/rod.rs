@@ -69,6 +69,8 @@ pub struct RodBend {
     pub k: f64,
     /// |κb̄| at rest.
     pub rest: f64,
+    /// Bend angle dropoff, if any ([`RodBend::set_dropoff`]).
+    pub dropoff: Option<super::Dropoff>,
 }
 
 /// |κb|² = 4|e₀ × e₁|² / (|e₀||e₁| + e₀·e₁)² of two edge vectors.
@@ -87,6 +89,12 @@ fn kb_squared_of<S: DualNum<Primitive = f64> + Clone>(e0: &[S], e1: &[S]) -> S {
 }
 
 impl RodBend {
+    /// Sets the bend angle dropoff d ∈ [0, 1] at reference curvature κ₀ (d = 0: none), for a
+    /// bend whose Voronoi length is `length`: its curvature is |κb|/l, so E = ½ κ² · 2k l².
+    pub fn set_dropoff(&mut self, d: f64, kappa0: f64, length: f64) {
+        self.dropoff = super::Dropoff::new(d, kappa0, 2.0 * self.k * length * length);
+    }
+
     fn is_straight(&self, x: &[Vector3<f64>]) -> bool {
         let e0 = x[self.v[1] as usize] - x[self.v[0] as usize];
         let e1 = x[self.v[2] as usize] - x[self.v[1] as usize];
@@ -105,7 +113,8 @@ impl Element for RodBend {
     fn energy(&self, x: &[Vector3<f64>]) -> f64 {
         let e0 = x[self.v[1] as usize] - x[self.v[0] as usize];
         let e1 = x[self.v[2] as usize] - x[self.v[1] as usize];
-        kb_value(self, e0.as_slice(), e1.as_slice(), self.is_straight(x))
+        let e = kb_value(self, e0.as_slice(), e1.as_slice(), self.is_straight(x));
+        self.dropoff.map_or(e, |d| d.energy(e))
     }
     fn eval(&self, x: &[Vector3<f64>], project: bool, out: &mut Local) {
         // Exact gradient and Hessian by forward-over-forward hyper-dual numbers: one pass per
@@ -161,6 +170,9 @@ impl Element for RodBend {
         };
         let h: SMatrix<f64, 9, 9> = per_coordinate(&map, &inner);
         out.set::<9>(e, &g, &h);
+        if let Some(d) = self.dropoff {
+            d.apply(out);
+        }
     }
 }
 
@@ -332,6 +344,7 @@ mod tests {
                 v: [0, 1, 2],
                 k: 0.02,
                 rest: 0.0,
+                dropoff: None,
             },
             &x,
             1e-8,
@@ -342,11 +355,48 @@ mod tests {
                 v: [0, 1, 2],
                 k: 0.02,
                 rest: 0.3,
+                dropoff: None,
             },
             &x,
             1e-8,
             1e-5,
         );
+    }
+
+    #[test]
+    fn bend_dropoff_finite_differences_and_its_moment_curvature_curve() {
+        let x = pts(&[[0.0, 0.0, 0.0], [0.1, 0.01, 0.0], [0.19, 0.05, 0.02]]);
+        for rest in [0.0, 0.3] {
+            let mut b = RodBend {
+                v: [0, 1, 2],
+                k: 0.02,
+                rest,
+                dropoff: None,
+            };
+            b.set_dropoff(0.8, 5.0, 0.1);
+            check(&b, &x, 1e-8, 1e-5);
+        }
+        // Three vertices on a circle of curvature κ, chords a = 2 mm (Voronoi length a): the
+        // moment dE/dκ over the plain one is the stated (1 − d) + dκ²/(3κ₀²) to 1 % up to
+        // κ = 3κ₀ (|κb|/a reads the circle's κ high by (κa)²/8, 0.2 % at 60/m: 1.1 % at 5 mm).
+        let (a, kappa0) = (0.002, 20.0);
+        let energy = |d: f64, kappa: f64| {
+            let r = 1.0 / kappa;
+            let half = (a / (2.0 * r)).asin();
+            let p: Vec<_> = [-2.0 * half, 0.0, 2.0 * half]
+                .iter()
+                .map(|t| Vector3::new(r * t.sin(), r * (1.0 - t.cos()), 0.0))
+                .collect();
+            let mut b = RodBend {
+                v: [0, 1, 2],
+                k: 1e-4 / (2.0 * a),
+                rest: 0.0,
+                dropoff: None,
+            };
+            b.set_dropoff(d, kappa0, a);
+            b.energy(&p)
+        };
+        super::super::dropoff::assert_moment_curve(energy);
     }
 
     /// The projection done on the translation-free 6×6 matrix is the 9×9 Hessian's nearest
@@ -366,6 +416,7 @@ mod tests {
                     v: [0, 1, 2],
                     k: 0.02,
                     rest,
+                    dropoff: None,
                 };
                 let (mut exact, mut projected) = (Local::default(), Local::default());
                 bend.eval(x, false, &mut exact);
@@ -411,6 +462,7 @@ mod tests {
             v: [0, 1, 2],
             k: 0.05,
             rest: 0.0,
+            dropoff: None,
         };
         assert!((c.energy(&x) - bend.energy(&ghost)).abs() < 1e-15);
     }
@@ -423,6 +475,7 @@ mod tests {
             v: [0, 1, 2],
             k: 1.0,
             rest: 0.0,
+            dropoff: None,
         };
         assert!((b.energy(&x) - 4.0).abs() < 1e-14);
         // Rigid rotation leaves the energy unchanged (rotation invariance).

@@ -48,9 +48,20 @@ pub struct ShellClamp {
     k: f64,
     /// r at rest.
     rest: f64,
+    /// The real (half) Voronoi area [m²].
+    area: f64,
+    /// Bend angle dropoff, if any ([`super::Dropoff`]).
+    dropoff: Option<super::Dropoff>,
 }
 
 impl ShellClamp {
+    /// Sets the bend angle dropoff d ∈ [0, 1] at reference curvature κ₀, as
+    /// [`super::ShellBend::set_dropoff`].
+    pub fn set_dropoff(&mut self, d: f64, kappa0: f64) {
+        // A cylinder of curvature κ has r − r̄ = κ Aᵥ: E = ½ κ² · k Aᵥ².
+        self.dropoff = super::Dropoff::new(d, kappa0, self.k * self.area * self.area);
+    }
+
     /// The element for stencil `v` (held vertex, real neighbours with weights `w`, then
     /// ghosts) with ghost `faces` in stencil indices, rest positions `p` (stencil order) and
     /// stiffness `k`. None when the rest ring gives no direction into the cloth.
@@ -60,6 +71,7 @@ impl ShellClamp {
         faces: Vec<[u8; 3]>,
         p: &[[f64; 3]],
         k: f64,
+        area: f64,
     ) -> Option<Self> {
         let mut e = ShellClamp {
             v: v.into(),
@@ -69,6 +81,8 @@ impl ShellClamp {
             s: 1.0,
             k,
             rest: 0.0,
+            area,
+            dropoff: None,
         };
         let (_, n, m) = e.frame(p);
         let y = e.laplacian(p);
@@ -147,7 +161,8 @@ impl Element for ShellClamp {
         let mut p = [[0.0; 3]; MAX_STENCIL];
         self.positions(x, &mut p);
         let d = self.r(&p[..self.v.len()]) - self.rest;
-        0.5 * self.k * d * d
+        let e = 0.5 * self.k * d * d;
+        self.dropoff.map_or(e, |dr| dr.energy(e))
     }
     #[allow(clippy::needless_range_loop)] // DOF index arithmetic
     fn eval(&self, x: &[Vector3<f64>], project: bool, out: &mut Local) {
@@ -194,5 +209,8 @@ impl Element for ShellClamp {
             }
         }
         out.symmetrize();
+        if let Some(dr) = self.dropoff {
+            dr.apply(out);
+        }
     }
 }
