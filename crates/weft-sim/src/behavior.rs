@@ -508,10 +508,39 @@ impl Behavior for AttachmentBehavior {
         ]
     }
     fn apply(&self, scene: &[SceneElement], b: &mut SystemBuilder) -> Result<(), SimError> {
+        // Rigid groups first: a sliding attachment listing a group's vertex slides the group.
+        for rigid_pass in [true, false] {
+            self.apply_pass(scene, b, rigid_pass)?;
+        }
+        Ok(())
+    }
+}
+
+impl AttachmentBehavior {
+    /// The rigid attachments (`rigid`), or every other one.
+    fn apply_pass(
+        &self,
+        scene: &[SceneElement],
+        b: &mut SystemBuilder,
+        rigid_pass: bool,
+    ) -> Result<(), SimError> {
+        // Per vertex, its rigid group (made in the first pass).
+        let mut group_of: std::collections::HashMap<usize, usize> = Default::default();
+        if !rigid_pass {
+            for (k, g) in b.system.rigid.iter().enumerate() {
+                for &v in &g.vertices {
+                    group_of.insert(v as usize, k);
+                }
+            }
+        }
+        let mut sliding_groups = std::collections::BTreeSet::new();
         for (ai, a) in scene.iter().enumerate() {
             let Some(att) = a.secs.get::<Attachment>() else {
                 continue;
             };
+            if matches!(att.mode, AttachmentMode::Rigid { .. }) != rigid_pass {
+                continue;
+            }
             b.read(ai, "attachment");
             let fail = |m: String| SimError::BadAttachment {
                 attachment: a.name.clone(),
@@ -568,6 +597,24 @@ impl Behavior for AttachmentBehavior {
                 }
                 let g = (v + off) as usize;
                 let spring = match att.mode {
+                    AttachmentMode::Slide { friction } if group_of.contains_key(&g) => {
+                        // A ring: the group's centroid slides, once however many of its
+                        // vertices are listed.
+                        let k = group_of[&g];
+                        if sliding_groups.insert(k) {
+                            let members = b.system.rigid[k].vertices.clone();
+                            crate::slide::slide(
+                                b,
+                                g,
+                                Some(&members),
+                                targets.clone(),
+                                friction,
+                                &att.target,
+                                v,
+                            );
+                        }
+                        continue;
+                    }
                     AttachmentMode::Slide { friction } => {
                         // Two attachments on one vertex: said here, with their names.
                         if b.system.pinned[g] || constrained(b, g) {
@@ -576,7 +623,7 @@ impl Behavior for AttachmentBehavior {
                                 att.target
                             )));
                         }
-                        crate::slide::slide(b, g, targets.clone(), friction, &att.target, v);
+                        crate::slide::slide(b, g, None, targets.clone(), friction, &att.target, v);
                         continue;
                     }
                     AttachmentMode::Rigid { .. } | AttachmentMode::Freeze { .. } => continue,

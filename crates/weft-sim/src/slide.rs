@@ -313,16 +313,34 @@ pub(crate) fn targets(
 
 /// Global vertex `g` (vertex `local` of element `name`) slides on the nearest of the given
 /// rails and surfaces, with friction `mu`, moved onto it now (with a warning when that is
-/// more than a micrometre).
+/// more than a micrometre). With `group` (the members of the rigid group `g` is in), the
+/// group slides: its centroid is what is placed, and all its members move.
 pub(crate) fn slide(
     b: &mut SystemBuilder,
     g: usize,
+    group: Option<&[u32]>,
     (rails, surfaces): (Range<usize>, Range<usize>),
     mu: f64,
     name: &str,
     local: u32,
 ) {
-    let x = b.x[g];
+    let x = match group {
+        Some(members) => {
+            // Mass-weighted as the solver's (a plain mean if no mass is known yet).
+            let w: f64 = members.iter().map(|&m| b.system.mass[m as usize]).sum();
+            let mut c = Vector3::zeros();
+            for &m in members {
+                let m = m as usize;
+                c += if w > 0.0 {
+                    b.system.mass[m] / w
+                } else {
+                    1.0 / members.len() as f64
+                } * b.x[m];
+            }
+            c
+        }
+        None => b.x[g],
+    };
     let on = rails
         .map(|k| SlideOn::Rail(k as u32))
         .chain(surfaces.map(|k| SlideOn::Surface(k as u32)));
@@ -338,11 +356,20 @@ pub(crate) fn slide(
     let Some((d, on, p)) = best else { return };
     if d > 1e-6 {
         b.warn(format!(
-            "vertex {local} of '{name}' starts {d:.3e} m from what it slides on: moved onto it"
+            "vertex {local} of '{name}' (or its rigid group's centroid) starts {d:.3e} m from what it slides on: moved onto it"
         ));
     }
-    b.x[g] = p;
-    b.constrained[g] = true;
+    match group {
+        Some(members) => {
+            for &m in members {
+                b.x[m as usize] += p - x;
+            }
+        }
+        None => {
+            b.x[g] = p;
+            b.constrained[g] = true;
+        }
+    }
     b.system.sliders.push(Slider {
         vertex: g as u32,
         on,

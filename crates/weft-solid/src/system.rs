@@ -315,6 +315,16 @@ impl SolidSystem {
         // Per-vertex flags only when there is something to flag (this runs every step).
         let flags = |k: usize| vec![false; if k == 0 { 0 } else { n }];
         let mut grouped = flags(self.rigid.len());
+        // Per vertex, its group (when there are groups and sliders: a slider on a member
+        // slides the whole group, one slider a group).
+        let mut group_of = vec![
+            u32::MAX;
+            if self.sliders.is_empty() {
+                0
+            } else {
+                grouped.len()
+            }
+        ];
         for (group, g) in self.rigid.iter().enumerate() {
             let fail = |reason: String| Err(SystemError::BadRigid { group, reason });
             if g.vertices.len() < 2 {
@@ -334,9 +344,13 @@ impl SolidSystem {
                 if std::mem::replace(&mut grouped[v], true) {
                     return fail(format!("vertex {v} is in it twice, or in another group"));
                 }
+                if let Some(s) = group_of.get_mut(v) {
+                    *s = group as u32;
+                }
             }
         }
         let mut sliding = flags(self.sliders.len());
+        let mut group_slides = vec![false; self.rigid.len()];
         for sl in &self.sliders {
             let vertex = sl.vertex as usize;
             let fail = |reason: String| Err(SystemError::BadSlider { vertex, reason });
@@ -349,8 +363,12 @@ impl SolidSystem {
             if std::mem::replace(&mut sliding[vertex], true) {
                 return fail("it is listed twice".into());
             }
-            if grouped.get(vertex).copied().unwrap_or(false) {
-                return fail("it is also in a rigid group".into());
+            if let Some(&g) = group_of.get(vertex).filter(|&&g| g != u32::MAX)
+                && std::mem::replace(&mut group_slides[g as usize], true)
+            {
+                return fail(format!(
+                    "rigid group {g} already slides (one slider a group: its centroid slides)"
+                ));
             }
             if !(sl.friction >= 0.0 && sl.friction.is_finite()) {
                 return fail(format!(

@@ -8,9 +8,43 @@ use super::{Integrator, Mode, NONE};
 use crate::slide::{FRICTION_EPS_V, friction_f0_f1, place, projector};
 use crate::system::SolidSystem;
 
+/// The mass-weighted centroid of `members` at `x`.
+fn centroid(sys: &SolidSystem, members: &[u32], x: &[Vector3<f64>]) -> Vector3<f64> {
+    let (mut s, mut w) = (Vector3::zeros(), 0.0);
+    for &v in members {
+        s += sys.mass[v as usize] * x[v as usize];
+        w += sys.mass[v as usize];
+    }
+    s / w
+}
+
 impl Integrator {
-    /// Maps free vertices to their sliders (the system's sliders may change between calls).
-    fn map_sliders(&mut self, sys: &SolidSystem) {
+    /// What slider `v` moves, and the point that slides: a free vertex's node and position,
+    /// or, for a member of a rigid group, its group's translation node and centroid (a ring
+    /// on a rail: the group slides, its rotation free); None for a held vertex.
+    fn slider_node(
+        &self,
+        sys: &SolidSystem,
+        x: &[Vector3<f64>],
+        v: usize,
+    ) -> Option<(usize, Vector3<f64>)> {
+        let f = self.free_of[v];
+        if f != NONE {
+            return Some((f as usize, x[v]));
+        }
+        let g = *self.groups.of.get(v)?;
+        (g != NONE).then(|| {
+            let g = g as usize;
+            (
+                self.groups.node[g] as usize,
+                centroid(sys, &self.groups.members[g], x),
+            )
+        })
+    }
+
+    /// Maps free vertices (and groups' translation nodes) to their sliders (the system's
+    /// sliders may change between calls).
+    fn map_sliders(&mut self, sys: &SolidSystem, x: &[Vector3<f64>]) {
         let k = sys.sliders.len();
         self.slide_of.clear();
         self.slide_of.resize(self.n_free, NONE);
@@ -18,17 +52,29 @@ impl Integrator {
         self.slide_scale.resize(k, 0.0);
         self.slide_normal.resize(k, 0.0);
         for (k, sl) in sys.sliders.iter().enumerate() {
-            let f = self.free_of[sl.vertex as usize];
-            if f != NONE {
-                self.slide_of[f as usize] = k as u32;
+            if let Some((f, _)) = self.slider_node(sys, x, sl.vertex as usize) {
+                self.slide_of[f] = k as u32;
             }
         }
     }
 
-    /// Moves every sliding vertex of `x` to its target's closest point.
+    /// Moves every sliding vertex of `x` to its target's closest point (a sliding rigid
+    /// group: all its members by the step that takes its centroid there).
     pub(super) fn retract(&self, sys: &SolidSystem, x: &mut [Vector3<f64>]) {
         for sl in &sys.sliders {
             let v = sl.vertex as usize;
+            let group = self.groups.of.get(v).copied().unwrap_or(NONE);
+            if self.free_of[v] == NONE && group != NONE {
+                let members = &self.groups.members[group as usize];
+                let c = centroid(sys, members, x);
+                if let Some(p) = place(&sys.rails, &sys.surfaces, sl.on, &c) {
+                    let shift = p.point - c;
+                    for &m in members {
+                        x[m as usize] += shift;
+                    }
+                }
+                continue;
+            }
             // `SolidSystem::check` refused targets without a closest point.
             if let Some(p) = place(&sys.rails, &sys.surfaces, sl.on, &x[v]) {
                 x[v] = p.point;
@@ -56,7 +102,12 @@ impl Integrator {
             let n = self.slide_normal.get(k).copied().unwrap_or(0.0);
             if sl.friction > 0.0 && n > 0.0 {
                 let v = sl.vertex as usize;
-                let u = self.slide_proj[k] * (x[v] - x0[v]);
+                let (Some((_, p)), Some((_, p0))) =
+                    (self.slider_node(sys, x, v), self.slider_node(sys, x0, v))
+                else {
+                    continue;
+                };
+                let u = self.slide_proj[k] * (p - p0);
                 e += sl.friction * n * friction_f0_f1(u.norm(), FRICTION_EPS_V * h).0;
             }
         }
@@ -79,16 +130,14 @@ impl Integrator {
         if sys.sliders.is_empty() {
             return;
         }
-        self.map_sliders(sys);
+        self.map_sliders(sys, x);
         for (k, sl) in sys.sliders.iter().enumerate() {
             let v = sl.vertex as usize;
-            let f = self.free_of[v];
-            if f == NONE {
+            let Some((f, at)) = self.slider_node(sys, x, v) else {
                 continue;
-            }
-            let f = f as usize;
+            };
             let g = Vector3::new(self.grad[3 * f], self.grad[3 * f + 1], self.grad[3 * f + 2]);
-            let p = match place(&sys.rails, &sys.surfaces, sl.on, &x[v]) {
+            let p = match place(&sys.rails, &sys.surfaces, sl.on, &at) {
                 Some(pl) => projector(&pl, &g),
                 None => Matrix3::zeros(),
             };
@@ -108,7 +157,8 @@ impl Integrator {
             // μN [f₁/y (P − û ûᵀ) + f₁′ û ûᵀ], both terms PSD (f₁′ = 0 beyond ε).
             let mu_n = sl.friction * self.slide_normal[k];
             let eps = FRICTION_EPS_V * h;
-            let u = p * (x[v] - x0[v]);
+            let at0 = self.slider_node(sys, x0, v).map_or(at, |(_, q)| q);
+            let u = p * (at - at0);
             let y = u.norm();
             let (grad, hess) = if y == 0.0 {
                 (Vector3::zeros(), 2.0 / eps * p)
@@ -167,11 +217,9 @@ impl Integrator {
             }
         }
         for (k, sl) in sys.sliders.iter().enumerate() {
-            let f = self.free_of[sl.vertex as usize];
-            if f == NONE {
+            let Some((f, _)) = self.slider_node(sys, x, sl.vertex as usize) else {
                 continue;
-            }
-            let f = f as usize;
+            };
             let p = self.slide_proj[k];
             let g = p * Vector3::new(self.grad[3 * f], self.grad[3 * f + 1], self.grad[3 * f + 2]);
             let normal = self.slide_scale[k] * (Matrix3::identity() - p);
@@ -335,6 +383,65 @@ mod tests {
             }
         }
         assert!((a.v[0] - b.v[0]).norm() < 1e-9);
+    }
+
+    #[test]
+    fn a_rigid_group_slides_by_its_centroid_and_keeps_its_shape() {
+        // A rigid triangle (a ring) whose centroid slides on a wire 0.3 rad below +x: the
+        // centroid accelerates at g sin θ exactly as a bead does (v_n = n h g sin θ, implicit
+        // Euler with a constant force along the rail), stays on the wire, and the triangle
+        // neither deforms nor turns (gravity has no torque about the centroid).
+        let theta = 0.3f64;
+        let (rail, t) = tilted(theta);
+        let mut sys = SolidSystem::new(vec![0.01, 0.02, 0.01]);
+        sys.gravity = Vector3::new(0.0, -9.81, 0.0);
+        sys.rigid.push(crate::RigidGroup {
+            vertices: vec![0, 1, 2],
+        });
+        sys.rails.push(rail.clone());
+        sys.sliders.push(Slider {
+            vertex: 1,
+            on: SlideOn::Rail(0),
+            friction: 0.0,
+        });
+        // Centroid (mass-weighted) at the origin, on the rail.
+        let start = [
+            Vector3::new(-0.02, 0.01, 0.0),
+            Vector3::new(0.01, -0.01, 0.005),
+            Vector3::new(0.0, 0.01, -0.01),
+        ];
+        let c0 = (0.01 * start[0] + 0.02 * start[1] + 0.01 * start[2]) / 0.04;
+        let mut s = State {
+            x: start.iter().map(|p| p - c0).collect(),
+            v: vec![Vector3::zeros(); 3],
+        };
+        let x0 = s.x.clone();
+        let mut integ = Integrator::new(&sys).unwrap();
+        let h = 0.01;
+        for _ in 0..50 {
+            integ.step(&sys, &mut s, None, h, &settings()).unwrap();
+        }
+        let c = (0.01 * s.x[0] + 0.02 * s.x[1] + 0.01 * s.x[2]) / 0.04;
+        let a = 9.81 * theta.sin();
+        let want = a * h * h * 50.0 * 51.0 / 2.0;
+        assert!(
+            (c.dot(&t) - want).abs() < 1e-9 * want,
+            "{} want {want}",
+            c.dot(&t)
+        );
+        assert!((c - rail.closest(&c).unwrap().point).norm() < 1e-12);
+        for (i, (x, x0)) in s.x.iter().zip(&x0).enumerate() {
+            // Translated, not turned nor deformed.
+            assert!((x - c - x0).norm() < 1e-10, "vertex {i}");
+        }
+        // A second slider on the same group is refused.
+        sys.sliders.push(Slider {
+            vertex: 2,
+            on: SlideOn::Rail(0),
+            friction: 0.0,
+        });
+        let e = sys.check(&s).unwrap_err().to_string();
+        assert!(e.contains("already slides"), "{e}");
     }
 
     #[test]
