@@ -159,7 +159,7 @@ fn falling_cloth(sec: bool, coupled: bool) -> Vec<f64> {
     let solver = if coupled {
         r#""scene": {"type": "scene.gather", "inputs": {"elements": ["density.element"]}},
         "setup": {"type": "coupled.setup", "inputs": {"scene": "scene.scene", "tree": "tree.tree"}},
-        "solve": {"type": "solver.coupled", "inputs": {"scene": "scene.scene", "state": "setup.state", "iterate": "setup.state"},
+        "solve": {"type": "solver.coupled", "inputs": {"scene": "scene.scene", "state": "setup.state", "iterate": "setup.state", "tree": "tree.tree"},
                   "params": {"solid.tolerance": 1.0e-12}},
         "result": {"type": "coupled.scene", "inputs": {"state": "solve.state"}},
         "v": {"type": "scene.vertex", "inputs": {"scene": "result.scene"}, "params": {"element": "cloth", "index": 0}}"#
@@ -200,6 +200,12 @@ fn keyed_damping_on_an_sec_or_a_behavior_changes_the_fall_from_its_key() {
             2,
         ),
         ("sec.discrete_shell damping, solver.coupled", true, true, 1),
+        (
+            "behavior.damping coefficient, solver.coupled",
+            false,
+            true,
+            1,
+        ),
     ] {
         let got = falling_cloth(sec, coupled);
         // Mean velocity over each frame from the substeps' velocities.

@@ -208,3 +208,27 @@ fn a_stepped_output_that_feeds_nothing_needs_an_initial_value() {
     let e = load_error(&text.replace(r#""initial": 0.0, "#, ""));
     assert!(e.contains("output 'residual' of stepped subgraph 'cubic_decay_step' feeds no input, so it needs an 'initial' value"), "{e}");
 }
+
+#[test]
+fn an_optional_subgraph_input_left_unconnected_reads_as_unconnected_inside() {
+    // "offset" is declared with a null default: unconnected outside, the inner math.add
+    // reads its own default (0) for it; connected, it takes the value.
+    let text = |outer: &str| {
+        format!(
+            r#"{{"format": "weft-graph", "version": 1,
+              "subgraphs": {{"shift": {{
+                "inputs": {{"x": {{"type": "float"}}, "offset": {{"type": "float", "doc": "optional", "default": null}}}},
+                "nodes": {{"add": {{"type": "math.add", "inputs": {{"a": "in.x", "b": "in.offset"}}}}}},
+                "outputs": {{"y": {{"from": "add.out"}}}}}}}},
+              "nodes": {{"x": {{"type": "value.float", "params": {{"value": 2.0}}}},
+                        "three": {{"type": "value.float", "params": {{"value": 3.0}}}},
+                        "s": {{"type": "shift", "inputs": {{"x": "x.out"{outer}}}}}}},
+              "outputs": {{"y": "s.y"}}}}"#
+        )
+    };
+    assert_eq!(f64_at(&mut graph(&text("")), "y", 0), 2.0);
+    assert_eq!(
+        f64_at(&mut graph(&text(r#", "offset": "three.out""#)), "y", 0),
+        5.0
+    );
+}

@@ -223,6 +223,7 @@ fn local_type(
                 .help(nearest(&i.ty, known)),
             );
         } else if let Some(j) = &i.default
+            && !j.is_null()
             && env.registry.json_value(&i.ty, j).is_none()
         {
             let why = match env.registry.port_type(&i.ty).and_then(|t| t.from_json) {

@@ -441,7 +441,7 @@ impl Graph {
                 continue;
             }
             self.mark[n] = generation;
-            if self.valid(n, &ctx) {
+            if self.valid(n, &ctx) || (n != target && self.unset_input(n)) {
                 continue;
             }
             need.push(n);
@@ -476,6 +476,10 @@ impl Graph {
         let Some(&(src, p)) = self.slots[n].inputs[port].get(k) else {
             return Ok(self.slots[n].input_defaults[port].clone());
         };
+        if self.unset_input(src) {
+            // As if unconnected.
+            return Ok(self.slots[n].input_defaults[port].clone());
+        }
         self.ensure(src, ctx)
             .map_err(|e| NodeError::Upstream(Box::new(e)))?;
         Ok(self.slots[src].cache.as_ref().map(|c| c.outputs[p].clone()))
@@ -483,6 +487,14 @@ impl Graph {
 
     /// The evaluation context of slot `n` at `ctx`: its parameters, with those driven by
     /// connections read at `ctx` (checked as at load, factory included).
+    /// Whether slot `n` is a subgraph's optional input (declared with a null default) left
+    /// unconnected outside: it reads as nothing, as an unconnected optional input does, and
+    /// is never evaluated.
+    fn unset_input(&self, n: usize) -> bool {
+        let s = &self.slots[n];
+        s.kernel.is_none() && s.source.is_none() && s.spec.name == "graph.input"
+    }
+
     pub(crate) fn cx(&mut self, n: usize, ctx: Context) -> Result<EvalCx<'_>, NodeError> {
         let params = if self.slots[n].param_links.is_empty() {
             self.slots[n].params.clone()

@@ -262,11 +262,14 @@ pub(super) fn predict(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), Nod
     let scene = Arc::new(get::<Scene>(&scene, "scene")?.clone());
     let frame = cx.frame();
     s.compiled.check_scene(&scene, frame).map_err(failed)?;
-    // Animated SEC parameters (stiffness, drag, friction, the fluid's): read at every frame;
-    // the Behavior tree is the one coupled.setup compiled.
+    // Animated parameters: the SECs (stiffness, drag, friction, the fluid's) are read at
+    // every frame, and the Behavior tree when it is wired (else the one compiled).
+    let tree = cx
+        .input_opt("tree")?
+        .and_then(|v| v.get::<weft_sim::BehaviorTree>().cloned());
     let compiled = match s
         .compiled
-        .with_params(&scene, None, frame, Some(cx.memory_budget()))
+        .with_params(&scene, tree.as_ref(), frame, Some(cx.memory_budget()))
         .map_err(failed)?
     {
         Some(c) => Arc::new(c),

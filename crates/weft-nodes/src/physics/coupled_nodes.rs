@@ -69,6 +69,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         NodeSpec::new("coupled.predict", "coupled stage, once per step: advects the fluid (u*; gravity is in the hydrostatic pressure), diffuses it when viscosity is on; one_way also projects it without solids")
             .input("state", "coupled", "the state at the previous frame")
             .input("scene", "scene", "the scene at this frame (attachment targets)")
+            .input_default("tree", "behavior_tree", serde_json::json!(null), "the Behavior tree at this frame (animated Behavior parameters); unconnected: the one compiled")
             .output("step", "coupled_step", "the step's start")
             .param(method("newton"))
             .param(ParamSpec::bool("viscosity", false).doc("viscous diffusion of the fluid after advection (implicit, nu = viscosity/density from the Fluid SEC); off: inviscid, as water and air are at hair and cloth scales"))
