@@ -48,6 +48,29 @@ pub struct Compiled {
     pub tree: BehaviorTree,
 }
 
+/// Whether two elements' SECs differ only in a freeze attachment's weight, which the stepper
+/// reads at every frame itself (`Compiled::freeze_frame`): nothing to compile again.
+fn only_freeze_weight_differs(a: &SceneElement, b: &SceneElement) -> bool {
+    use weft_scene::{Attachment, AttachmentMode};
+    let weightless = |e: &SceneElement| {
+        e.secs.get::<Attachment>().map(|att| {
+            let mut att = att.clone();
+            if let AttachmentMode::Freeze { weight } = &mut att.mode {
+                *weight = 0.0;
+            }
+            att
+        })
+    };
+    let (Some(x), Some(y)) = (weightless(a), weightless(b)) else {
+        return false;
+    };
+    x == y
+        && a.secs.types().eq(b.secs.types())
+        && a.secs.iter().zip(b.secs.iter()).all(|(p, q)| {
+            p.sec_type() == "attachment" || std::sync::Arc::ptr_eq(p, q) || p.same(&**q)
+        })
+}
+
 /// Whether two trees hold the same Behaviors with the same parameters.
 fn same_tree(a: &BehaviorTree, b: &BehaviorTree) -> bool {
     a.behaviors.len() == b.behaviors.len()
@@ -83,7 +106,7 @@ impl Compiled {
             && scene
                 .iter()
                 .zip(self.source.iter())
-                .all(|(a, b)| a.secs.same_as(&b.secs));
+                .all(|(a, b)| a.secs.same_as(&b.secs) || only_freeze_weight_differs(a, b));
         if tree_same && secs_same {
             return Ok(None);
         }

@@ -532,3 +532,51 @@ fn a_cloth_gives_identical_bits_on_one_two_and_three_threads() {
         assert!(same, "{threads} threads differ from 1");
     }
 }
+
+#[test]
+fn changed_sec_values_compile_again_but_a_freeze_weight_or_nothing_does_not() {
+    let mut scene = vec![cloth(4), pins("cloth", vec![0])];
+    scene[0].secs.insert(DiscreteShell::default());
+    let mut freeze = SceneElement::new("freeze", ElementKind::Attachment, Geometry::None);
+    freeze.secs.insert(Attachment {
+        target: "cloth".into(),
+        vertices: vec![15],
+        mode: AttachmentMode::Freeze { weight: 1.0 },
+        clamps: Vec::new(),
+    });
+    scene.push(freeze);
+    let c = compile(&scene, &tree()).unwrap();
+    // The same values in new SECs: nothing to do.
+    let mut same = scene.clone();
+    same[0].secs.insert(DiscreteShell::default());
+    assert!(
+        c.with_params(&same, Some(&tree()), 3, None)
+            .unwrap()
+            .is_none()
+    );
+    // A freeze weight is read by the stepper every frame: nothing to compile either.
+    let mut weight = scene.clone();
+    weight[2].secs.insert(Attachment {
+        target: "cloth".into(),
+        vertices: vec![15],
+        mode: AttachmentMode::Freeze { weight: 0.25 },
+        clamps: Vec::new(),
+    });
+    assert!(c.with_params(&weight, None, 3, None).unwrap().is_none());
+    // A stiffer cloth: compiled again, stiffer, with the start's rest shape and structure.
+    let mut stiffer = scene.clone();
+    stiffer[0].secs.insert(DiscreteShell {
+        youngs_modulus: 2e6,
+        ..Default::default()
+    });
+    let c2 = c.with_params(&stiffer, None, 3, None).unwrap().unwrap();
+    assert_eq!(c2.state.x, c.state.x);
+    assert_eq!(c2.system.elements.len(), c.system.elements.len());
+    assert!(c2.system.elements.membranes[0].material != c.system.elements.membranes[0].material);
+    // Attachments listing other vertices change what is held: refused only if the vertex
+    // count changes, otherwise compiled again (the stepper rebuilds its pattern).
+    let mut moved = scene.clone();
+    moved[1] = pins("cloth", vec![3]);
+    let c3 = c.with_params(&moved, None, 3, None).unwrap().unwrap();
+    assert!(c3.system.pinned[3] && !c3.system.pinned[0]);
+}
