@@ -13,13 +13,7 @@ const B: f64 = 1e-6;
 /// A strip (one strand) held by its first two vertices, bent by a couple: `f` [N] along +y
 /// on its tip and −f on the vertex before; no gravity; a static solve. Its vertices.
 fn bent_strip(d: f64, kappa0: f64, f: f64) -> Vec<[f64; 3]> {
-    let vertices: Vec<String> = (0..=N)
-        .map(|i| {
-            format!(
-                r#""v{i}": {{"type": "scene.vertex", "inputs": {{"scene": "solve.scene"}}, "params": {{"element": "strip", "index": {i}}}}}"#
-            )
-        })
-        .collect();
+    let (probes, outputs) = vertex_probes("solve.scene", "strip", N + 1);
     let nodes = format!(
         r#""line": {{"type": "geo.line", "params": {{"start": [0, 0, 0], "end": [{L}, 0, 0], "segments": {N}}}}},
         "strip": {{"type": "convert.hair", "inputs": {{"curves": "line.curves"}}, "params": {{"name": "strip"}}}},
@@ -36,15 +30,10 @@ fn bent_strip(d: f64, kappa0: f64, f: f64) -> Vec<[f64; 3]> {
         {}"#,
         N - 1,
         -f,
-        vertices.join(",\n")
+        probes
     );
-    let outputs: Vec<String> = (0..=N)
-        .map(|i| format!(r#""v{i}": "v{i}.position""#))
-        .collect();
-    let mut g = graph(&file(&nodes, &outputs.join(", ")));
-    (0..=N)
-        .map(|i| vec3_at(&mut g, &format!("v{i}"), 1))
-        .collect()
+    let mut g = graph(&file(&nodes, &outputs));
+    probed_positions(&mut g, N + 1, 1)
 }
 
 /// Turning angle at vertex j of the polyline `p` (in its plane, signed by z).

@@ -118,13 +118,7 @@ fn the_coupled_solver_holds_and_releases_frozen_vertices_alike() {
 /// A 0.5 m cloth (6 × 6) under gravity, `extra` nodes beside it (an attachment named
 /// `freeze` among them), solved by `params`; its vertex positions at `frame`.
 fn hanging(extra: &str, params: &str, frames: &[i64]) -> Vec<Vec<[f64; 3]>> {
-    let vertices: Vec<String> = (0..36)
-        .map(|i| {
-            format!(
-                r#""v{i}": {{"type": "scene.vertex", "inputs": {{"scene": "solve.scene"}}, "params": {{"element": "cloth", "index": {i}}}}}"#
-            )
-        })
-        .collect();
+    let (probes, outputs) = vertex_probes("solve.scene", "cloth", 36);
     let nodes = format!(
         r#""grid": {{"type": "geo.grid", "params": {{"width": 0.5, "height": 0.5, "nx": 6, "ny": 6, "plane": "xz", "center": [0, 1, 0]}}}},
         "cloth": {{"type": "convert.cloth", "inputs": {{"mesh": "grid.mesh"}}, "params": {{"name": "cloth"}}}},
@@ -138,19 +132,12 @@ fn hanging(extra: &str, params: &str, frames: &[i64]) -> Vec<Vec<[f64; 3]>> {
         "solve": {{"type": "solver.solid", "inputs": {{"elements": ["density.element", "freeze.element"], "tree": "tree.tree"}},
                    "params": {params}}},
         {}"#,
-        vertices.join(",\n")
+        probes
     );
-    let outputs: Vec<String> = (0..36)
-        .map(|i| format!(r#""v{i}": "v{i}.position""#))
-        .collect();
-    let mut g = graph(&file(&nodes, &outputs.join(", ")));
+    let mut g = graph(&file(&nodes, &outputs));
     frames
         .iter()
-        .map(|&f| {
-            (0..36)
-                .map(|i| vec3_at(&mut g, &format!("v{i}"), f))
-                .collect()
-        })
+        .map(|&f| probed_positions(&mut g, 36, f))
         .collect()
 }
 

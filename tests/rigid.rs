@@ -19,13 +19,7 @@ fn hanging_strand(rigid: bool) -> Vec<[f64; 3]> {
                       "params": {"name": "button", "mode": "spring", "vertices": [], "stiffness": 1}},
            "load": {"type": "behavior.load", "params": {"element": "strand", "select": "vertices", "vertices": [8, 9, 10], "force": [0, -0.0327, 0]}},"#
     };
-    let vertices: Vec<String> = (0..=10)
-        .map(|i| {
-            format!(
-                r#""v{i}": {{"type": "scene.vertex", "inputs": {{"scene": "solve.scene"}}, "params": {{"element": "strand", "index": {i}}}}}"#
-            )
-        })
-        .collect();
+    let (probes, outputs) = vertex_probes("solve.scene", "strand", 11);
     let nodes = format!(
         r#""line": {{"type": "geo.line", "params": {{"start": [0, 1, 0], "end": [0, 0, 0], "segments": 10}}}},
         "strand": {{"type": "convert.hair", "inputs": {{"curves": "line.curves"}}, "params": {{"name": "strand"}}}},
@@ -40,15 +34,10 @@ fn hanging_strand(rigid: bool) -> Vec<[f64; 3]> {
         "solve": {{"type": "solver.solid", "inputs": {{"elements": ["mass.element", "top.element", "button.element"], "tree": "tree.tree"}},
                    "params": {{"method": "static", "substeps": 1, "tolerance": 1e-13}}}},
         {}"#,
-        vertices.join(",\n")
+        probes
     );
-    let outputs: Vec<String> = (0..=10)
-        .map(|i| format!(r#""v{i}": "v{i}.position""#))
-        .collect();
-    let mut g = graph(&file(&nodes, &outputs.join(", ")));
-    (0..=10)
-        .map(|i| vec3_at(&mut g, &format!("v{i}"), 1))
-        .collect()
+    let mut g = graph(&file(&nodes, &outputs));
+    probed_positions(&mut g, 11, 1)
 }
 
 #[test]
@@ -169,13 +158,7 @@ fn swinging_strand(coupled: bool) -> Vec<[f64; 3]> {
         r#""solve": {"type": "solver.solid", "inputs": {"elements": ["mass.element", "top.element", "button.element"], "tree": "tree.tree"},
                    "params": {"substeps": 1, "tolerance": 1e-11}}"#
     };
-    let vertices: Vec<String> = (0..=10)
-        .map(|i| {
-            format!(
-                r#""v{i}": {{"type": "scene.vertex", "inputs": {{"scene": "{scene}"}}, "params": {{"element": "strand", "index": {i}}}}}"#
-            )
-        })
-        .collect();
+    let (probes, outputs) = vertex_probes(scene, "strand", 11);
     let nodes = format!(
         r#""line": {{"type": "geo.line", "params": {{"start": [0, 1, 0], "end": [0.5, 0.134, 0], "segments": 10}}}},
         "strand": {{"type": "convert.hair", "inputs": {{"curves": "line.curves"}}, "params": {{"name": "strand"}}}},
@@ -191,15 +174,10 @@ fn swinging_strand(coupled: bool) -> Vec<[f64; 3]> {
         "tree": {{"type": "behavior.tree", "inputs": {{"behaviors": ["material.behavior", "gravity.behavior", "attach.behavior"]}}}},
         {solver},
         {}"#,
-        vertices.join(",\n")
+        probes
     );
-    let outputs: Vec<String> = (0..=10)
-        .map(|i| format!(r#""v{i}": "v{i}.position""#))
-        .collect();
-    let mut g = graph(&file(&nodes, &outputs.join(", ")));
-    (0..=10)
-        .map(|i| vec3_at(&mut g, &format!("v{i}"), 12))
-        .collect()
+    let mut g = graph(&file(&nodes, &outputs));
+    probed_positions(&mut g, 11, 12)
 }
 
 #[test]

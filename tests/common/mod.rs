@@ -64,3 +64,26 @@ pub fn vec3_at(g: &mut Graph, output: &str, frame: i64) -> [f64; 3] {
 pub fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
+
+/// Graph-file text for `scene.vertex` probes `v0` … `v{count-1}` of element `element` in the
+/// scene `scene` ("node.port"): (their node declarations, their output declarations).
+pub fn vertex_probes(scene: &str, element: &str, count: usize) -> (String, String) {
+    let nodes: Vec<String> = (0..count)
+        .map(|i| {
+            format!(
+                r#""v{i}": {{"type": "scene.vertex", "inputs": {{"scene": "{scene}"}}, "params": {{"element": "{element}", "index": {i}}}}}"#
+            )
+        })
+        .collect();
+    let outputs: Vec<String> = (0..count)
+        .map(|i| format!(r#""v{i}": "v{i}.position""#))
+        .collect();
+    (nodes.join(",\n"), outputs.join(", "))
+}
+
+/// The positions of probes `v0` … `v{count-1}` (see [`vertex_probes`]) at `frame`.
+pub fn probed_positions(g: &mut Graph, count: usize, frame: i64) -> Vec<[f64; 3]> {
+    (0..count)
+        .map(|i| vec3_at(g, &format!("v{i}"), frame))
+        .collect()
+}
