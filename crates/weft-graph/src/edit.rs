@@ -115,10 +115,8 @@ impl Graph {
                 continue;
             }
             let d = &self.slots[m];
-            if let (Some(&a), Some(&b)) = (
-                d.checkpoints.frames().first(),
-                d.checkpoints.frames().last(),
-            ) {
+            let frames = d.checkpoints.frames();
+            if let (Some(&a), Some(&b)) = (frames.first(), frames.last()) {
                 // States at another frame rate are recomputed anyway.
                 if *fps.get_or_insert(d.ckpt_fps) != d.ckpt_fps {
                     return None;

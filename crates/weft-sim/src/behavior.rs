@@ -566,7 +566,7 @@ impl AttachmentBehavior {
             }
             if let AttachmentMode::Freeze { weight } = att.mode {
                 b.read(ai, "freeze_weights");
-                freeze(b, a, ai, ti, off, n, weight).map_err(fail)?;
+                freeze(b, a, att, ai, ti, off, n, weight).map_err(fail)?;
                 continue;
             }
             let targets = if let AttachmentMode::Slide { friction } = att.mode {
@@ -664,18 +664,17 @@ fn constrained(b: &SystemBuilder, g: usize) -> bool {
 /// Freeze attachment `a` (scene index `ai`) on element `ti` (first global vertex `off`, `n`
 /// vertices): a [`crate::FreezePin`] and a spring (stiffness 0 until a weight sets it) per
 /// listed vertex, with its factor from a Freeze Weights SEC (1 without one).
+#[allow(clippy::too_many_arguments)]
 fn freeze(
     b: &mut SystemBuilder,
     a: &SceneElement,
+    att: &Attachment,
     ai: usize,
     ti: usize,
     off: u32,
     n: usize,
     weight: f64,
 ) -> Result<(), String> {
-    let Some(att) = a.secs.get::<Attachment>() else {
-        return Ok(());
-    };
     if !(weight >= 0.0 && weight.is_finite()) {
         return Err(format!("the freeze weight must be ≥ 0, got {weight}"));
     }

@@ -145,17 +145,7 @@ impl SolidStepper {
                 settings.solver.method
             )));
         }
-        let integrator =
-            Integrator::new_within(&compiled.system, settings.max_bytes).map_err(|e| match e {
-                StepError::TooLarge { .. } => SimError::TooLarge(e.to_string()),
-                e => SimError::StepFailed {
-                    frame: 0,
-                    substep: 0,
-                    substeps: settings.substeps,
-                    retries: 0,
-                    message: format!("setting up the solver: {e}"),
-                },
-            })?;
+        let integrator = integrator_for(&compiled, &settings)?;
         let targets = compiled.state.x.clone();
         Ok(SolidStepper {
             system: compiled.system.clone(),
@@ -168,17 +158,15 @@ impl SolidStepper {
         })
     }
 
-    /// Steps `compiled` from now on (the same scene with other parameter values: see
-    /// [`Compiled::with_params`]). The integrator's pattern and symbolic factorization are
-    /// kept when the system's structure (vertices, held vertices, rigid groups, the
-    /// elements' stencils) is the same; contacts are rebuilt on the next frame.
+    /// Steps `compiled` from now on (the same scene with other parameter values, see
+    /// [`Compiled::with_params`], or the scene recompiled after an upstream change). The
+    /// integrator's pattern and symbolic factorization are kept when the system's structure
+    /// (vertices, held vertices, rigid groups, the elements' stencils) is the same; contacts
+    /// are rebuilt on the next frame.
     pub fn set_compiled(&mut self, compiled: Arc<Compiled>) -> Result<(), SimError> {
         if !same_structure(&self.compiled.system, &compiled.system) {
-            self.integrator = Integrator::new_within(&compiled.system, self.settings.max_bytes)
-                .map_err(|e| match e {
-                    StepError::TooLarge { .. } => SimError::TooLarge(e.to_string()),
-                    e => SimError::Unsupported(format!("setting up the solver again: {e}")),
-                })?;
+            self.integrator = integrator_for(&compiled, &self.settings)?;
+            self.targets = compiled.state.x.clone();
         }
         self.system = compiled.system.clone();
         self.compiled = compiled;
@@ -382,6 +370,20 @@ impl SolidStepper {
     pub fn scene_at(&self, scene: &[SceneElement], state: &SimState) -> Vec<SceneElement> {
         self.compiled.scene_at(scene, &state.solid)
     }
+}
+
+/// The integrator for `compiled`'s system (its pattern and factorization workspace).
+fn integrator_for(compiled: &Compiled, settings: &StepperSettings) -> Result<Integrator, SimError> {
+    Integrator::new_within(&compiled.system, settings.max_bytes).map_err(|e| match e {
+        StepError::TooLarge { .. } => SimError::TooLarge(e.to_string()),
+        e => SimError::StepFailed {
+            frame: 0,
+            substep: 0,
+            substeps: settings.substeps,
+            retries: 0,
+            message: format!("setting up the solver: {e}"),
+        },
+    })
 }
 
 /// Whether an integrator built for `a` serves `b`: the same vertices, held vertices, rigid

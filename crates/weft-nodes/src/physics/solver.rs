@@ -81,13 +81,9 @@ impl SolidSolver {
             .stepper
             .as_ref()
             .is_none_or(|s| !std::ptr::eq(s.compiled(), &**compiled));
-        // The same scene with other parameter values (an animated parameter): the integrator
-        // is kept when the structure is.
-        if let (true, Some(s)) = (fresh, self.stepper.as_mut())
-            && s.compiled().source.len() == compiled.source.len()
-            && s.compiled().ranges == compiled.ranges
-            && s.compiled().state.x.len() == compiled.state.x.len()
-        {
+        // Another compile (an animated parameter, an upstream change): the stepper keeps its
+        // integrator when the structure is the same.
+        if let (true, Some(s)) = (fresh, self.stepper.as_mut()) {
             s.set_compiled(compiled.clone())
                 .map_err(|e| NodeError::Failed(e.to_string()))?;
         } else if fresh {

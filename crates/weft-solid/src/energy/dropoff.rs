@@ -72,11 +72,6 @@ impl Dropoff {
         }
     }
 
-    /// The stiffness multiplier s(κ) = 1 − d + d (κ/κ₀)².
-    pub fn stiffness(d: f64, kappa0: f64, kappa: f64) -> f64 {
-        1.0 - d + d * (kappa / kappa0).powi(2)
-    }
-
     /// The moment at curvature κ per unit plain stiffness B: (1 − d) κ + d κ³/(3κ₀²).
     pub fn moment(d: f64, kappa0: f64, kappa: f64) -> f64 {
         (1.0 - d) * kappa + d * kappa.powi(3) / (3.0 * kappa0 * kappa0)
