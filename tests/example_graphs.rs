@@ -42,9 +42,10 @@ fn every_graph_file_runs_to_finite_outputs() {
                         "{name}: output {o} names {p}, which was not written"
                     );
                 }
-                let finite = match (v.get::<f64>(), v.get::<[f64; 3]>()) {
-                    (Some(x), _) => x.is_finite(),
-                    (_, Some(a)) => a.iter().all(|x| x.is_finite()),
+                let finite = match (v.get::<f64>(), v.get::<[f64; 3]>(), v.get::<Vec<f64>>()) {
+                    (Some(x), _, _) => x.is_finite(),
+                    (_, Some(a), _) => a.iter().all(|x| x.is_finite()),
+                    (_, _, Some(l)) => l.iter().all(|x| x.is_finite()),
                     _ => true,
                 };
                 assert!(finite, "{name}: output {o} at frame {frame} is not finite");

@@ -353,21 +353,50 @@ fn write_outputs(
         &dir.join("outputs.json"),
         (serde_json::to_string_pretty(&j)? + "\n").as_bytes(),
     )?;
-    // CSV holds the columns that are plain numbers or booleans.
-    let scalar: Vec<usize> = (0..outputs.len())
-        .filter(|&k| matches!(g.output_type(&outputs[k]), Some("float" | "int" | "bool")))
-        .collect();
+    // CSV holds the outputs that are numbers or booleans, one column each, and vectors and
+    // lists of numbers one column per component: NAME.x, NAME.y, NAME.z for a vec3 and
+    // NAME.0 … NAME.N−1 for a list (N its longest length over the frames; shorter rows
+    // leave the rest empty), so a line probe's profile is a row per frame.
+    let mut columns: Vec<(usize, Option<usize>, String)> = Vec::new();
+    for (k, name) in outputs.iter().enumerate() {
+        match g.output_type(name) {
+            Some("float" | "int" | "bool") => columns.push((k, None, name.clone())),
+            Some("vec3") => {
+                for (c, axis) in ["x", "y", "z"].iter().enumerate() {
+                    columns.push((k, Some(c), format!("{name}.{axis}")));
+                }
+            }
+            Some("floats") => {
+                let n = rows
+                    .iter()
+                    .map(|(_, r)| r[k].as_array().map_or(0, |a| a.len()))
+                    .max()
+                    .unwrap_or(0);
+                for c in 0..n {
+                    columns.push((k, Some(c), format!("{name}.{c}")));
+                }
+            }
+            _ => {}
+        }
+    }
     let mut csv = String::from("frame");
-    for &k in &scalar {
+    for (_, _, head) in &columns {
         csv.push(',');
-        csv.push_str(&outputs[k]);
+        csv.push_str(head);
     }
     csv.push('\n');
     for (f, r) in rows {
         csv.push_str(&f.to_string());
-        for &k in &scalar {
+        for &(k, c, _) in &columns {
             csv.push(',');
-            csv.push_str(&cell(&r[k]));
+            match c {
+                None => csv.push_str(&cell(&r[k])),
+                Some(c) => {
+                    if let Some(x) = r[k].as_array().and_then(|a| a.get(c)) {
+                        csv.push_str(&cell(x));
+                    }
+                }
+            }
         }
         csv.push('\n');
     }

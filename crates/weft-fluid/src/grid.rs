@@ -399,18 +399,8 @@ impl MacGrid {
     /// The pressure [Pa] of the cell that holds `p` (clamped into the domain, wrapped on
     /// periodic axes): pressures live at cell centres, so a probe at a centre reads its cell.
     pub fn pressure_at(&self, p: [f64; 3]) -> f64 {
-        let dom = &self.domain;
-        let idx: [usize; 3] = std::array::from_fn(|b| {
-            let x = ((p[b] - dom.origin[b]) / dom.dx).floor();
-            let n = dom.cells[b] as f64;
-            let x = if dom.boundaries.is_periodic(b) {
-                x.rem_euclid(n)
-            } else {
-                x.clamp(0.0, n - 1.0)
-            };
-            if x.is_finite() { x as usize } else { 0 }.min(dom.cells[b] - 1)
-        });
-        self.pressure[dom.cell(idx[0], idx[1], idx[2])]
+        let [i, j, k] = self.cell_holding(p);
+        self.pressure[self.domain.cell(i, j, k)]
     }
 
     /// Kinetic energy per unit density, ½ Σ u² dx³ over distinct faces [m⁵/s²].
@@ -422,7 +412,7 @@ impl MacGrid {
 
     /// Calls `f(axis, face)` once for every distinct face (a periodic axis's last face is
     /// its first face's copy and is skipped).
-    fn for_distinct_faces(&self, mut f: impl FnMut(usize, usize)) {
+    pub(crate) fn for_distinct_faces(&self, mut f: impl FnMut(usize, usize)) {
         let dom = &self.domain;
         for a in 0..3 {
             let d = dom.face_dims(a);

@@ -15,6 +15,7 @@
 
 pub mod advect;
 pub mod drag;
+pub mod fields;
 pub mod grid;
 pub mod obstacle;
 pub mod pressure;

@@ -16,6 +16,7 @@ pub mod preview;
 pub mod procedural;
 pub mod sec;
 pub mod usd;
+pub mod vdb;
 
 pub use element::{Channel, ElementKind, SceneElement, Transform};
 pub use geometry::{Curves, Geometry, Mesh, bounds};
@@ -26,4 +27,4 @@ pub use sec::{
     DiscreteShell, DomainSide, Drag, Fluid, FluidDomain, FreezeWeights, Members, Rod, Sec, SecSet,
     SlideRail, SlideSurface,
 };
-pub use usd::{UsdError, UsdaScene};
+pub use usd::{UsdError, UsdaScene, VolumeField};

@@ -109,6 +109,23 @@ enum PrimKind {
         counts: Vec<u32>,
         widths: Option<Vec<f32>>,
     },
+    /// A `Volume` of OpenVDB fields: per frame the file and the volume's extent.
+    Volume {
+        fields: Vec<VolumeField>,
+        files: BTreeMap<i64, (String, [[f32; 3]; 2])>,
+    },
+}
+
+/// One field of a volume prim: the grid's name in the VDB files and its data type.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct VolumeField {
+    /// The grid's name (the `OpenVDBAsset`'s `fieldName`, and the prim's name).
+    pub name: String,
+    /// `float` for scalar grids, `float3` for vector grids (UsdVol's `fieldDataType`).
+    pub data_type: &'static str,
+    /// For vectors, how they transform (`Vector` for velocities; UsdVol's
+    /// `vectorDataRoleHint`).
+    pub role: Option<&'static str>,
 }
 
 #[derive(Debug, Clone)]
@@ -119,6 +136,8 @@ struct Prim {
     /// no time samples.
     rest: Vec<[f32; 3]>,
     samples: BTreeMap<i64, Vec<[f32; 3]>>,
+    /// Velocities [m/s] per frame (`velocities`, which renderers use for motion blur).
+    velocities: BTreeMap<i64, Vec<[f32; 3]>>,
 }
 
 /// An animated USD scene being built, written as `.usda` text.
@@ -204,17 +223,24 @@ impl UsdaScene {
 
     /// First and last frame with a time sample, over all prims.
     pub fn frame_range(&self) -> Option<(i64, i64)> {
+        let keys = |p: &Prim| -> Vec<i64> {
+            let mut k: Vec<i64> = p.samples.keys().copied().collect();
+            if let PrimKind::Volume { files, .. } = &p.kind {
+                k.extend(files.keys());
+            }
+            k
+        };
         let first = self
             .prims
             .iter()
-            .filter_map(|p| p.samples.keys().next())
+            .filter_map(|p| keys(p).into_iter().min())
             .min()?;
         let last = self
             .prims
             .iter()
-            .filter_map(|p| p.samples.keys().next_back())
+            .filter_map(|p| keys(p).into_iter().max())
             .max()?;
-        Some((*first, *last))
+        Some((first, last))
     }
 
     fn unique_name(&self, name: &str) -> String {
@@ -265,6 +291,7 @@ impl UsdaScene {
             },
             rest,
             samples: BTreeMap::new(),
+            velocities: BTreeMap::new(),
         });
         Ok(PrimId(self.prims.len() - 1))
     }
@@ -330,6 +357,7 @@ impl UsdaScene {
             kind: PrimKind::Curves { counts, widths },
             rest,
             samples: BTreeMap::new(),
+            velocities: BTreeMap::new(),
         });
         Ok(PrimId(self.prims.len() - 1))
     }
@@ -373,28 +401,134 @@ impl UsdaScene {
         Ok(())
     }
 
-    /// Adds a frame: `positions[k]` are the positions of the k-th prim added, at `frame`
-    /// (replacing earlier samples at that frame).
+    /// Sets the velocities [m/s] of one mesh or curves prim at `frame`, one per vertex
+    /// (written as `velocities`, which renderers read for motion blur).
+    ///
+    /// # Errors
+    ///
+    /// [`UsdError::UnknownPrim`] (or a volume prim), [`UsdError::PointCount`],
+    /// [`UsdError::NonFinite`]; the scene is unchanged on error.
+    pub fn set_velocities(
+        &mut self,
+        prim: PrimId,
+        frame: i64,
+        velocities: &[[f64; 3]],
+    ) -> Result<(), UsdError> {
+        if matches!(
+            self.prims.get(prim.0).map(|p| &p.kind),
+            Some(PrimKind::Volume { .. })
+        ) {
+            return Err(UsdError::UnknownPrim(prim.0));
+        }
+        let v = self.checked_points(prim.0, frame, velocities)?;
+        self.prims[prim.0].velocities.insert(frame, v);
+        Ok(())
+    }
+
+    /// Adds a `Volume` prim whose fields are OpenVDB grids (`OpenVDBAsset` children, one per
+    /// field), with files given per frame by [`set_volume_file`](Self::set_volume_file).
+    ///
+    /// # Errors
+    ///
+    /// [`UsdError::BadTopology`] when there are no fields or two share a name.
+    pub fn add_volume(&mut self, name: &str, fields: &[VolumeField]) -> Result<PrimId, UsdError> {
+        let name = self.unique_name(name);
+        let mut seen = std::collections::BTreeSet::new();
+        for f in fields {
+            let id = sanitize_identifier(&f.name);
+            if id != f.name || !seen.insert(id) {
+                return Err(UsdError::BadTopology {
+                    prim: name,
+                    message: format!(
+                        "field name {:?} is used twice or is not an identifier ([A-Za-z_][A-Za-z0-9_]*)",
+                        f.name
+                    ),
+                });
+            }
+        }
+        if fields.is_empty() {
+            return Err(UsdError::BadTopology {
+                prim: name,
+                message: "a volume needs at least one field".into(),
+            });
+        }
+        self.prims.push(Prim {
+            name,
+            kind: PrimKind::Volume {
+                fields: fields.to_vec(),
+                files: BTreeMap::new(),
+            },
+            rest: Vec::new(),
+            samples: BTreeMap::new(),
+            velocities: BTreeMap::new(),
+        });
+        Ok(PrimId(self.prims.len() - 1))
+    }
+
+    /// Sets the VDB file of a volume prim at `frame` (an asset path, best relative to the
+    /// `.usda` file) and the volume's extent there (its box's minimum and maximum corners).
+    ///
+    /// # Errors
+    ///
+    /// [`UsdError::UnknownPrim`] for a prim that is not a volume, [`UsdError::BadTopology`] for
+    /// a path USD cannot hold (`@`, a line break) or a non-finite extent.
+    pub fn set_volume_file(
+        &mut self,
+        prim: PrimId,
+        frame: i64,
+        path: &str,
+        extent: [[f64; 3]; 2],
+    ) -> Result<(), UsdError> {
+        let Some(Prim {
+            name,
+            kind: PrimKind::Volume { files, .. },
+            ..
+        }) = self.prims.get_mut(prim.0)
+        else {
+            return Err(UsdError::UnknownPrim(prim.0));
+        };
+        if path.is_empty() || path.contains(['@', '\n', '\r']) {
+            return Err(UsdError::BadTopology {
+                prim: name.clone(),
+                message: format!("asset path {path:?} is empty or holds '@' or a line break"),
+            });
+        }
+        let e32 = extent.map(|c| c.map(|x| x as f32));
+        if !e32.iter().flatten().all(|x| x.is_finite()) {
+            return Err(UsdError::BadTopology {
+                prim: name.clone(),
+                message: format!("extent {extent:?} is not finite"),
+            });
+        }
+        files.insert(frame, (path.to_string(), e32));
+        Ok(())
+    }
+
+    /// Adds a frame: `positions[k]` are the positions of the k-th mesh or curves prim added
+    /// (volumes are skipped), at `frame` (replacing earlier samples at that frame).
     ///
     /// # Errors
     ///
     /// [`UsdError::PrimCount`] unless there is one position set per prim, and the errors of
     /// [`set_points`](Self::set_points); the scene is unchanged on error.
     pub fn add_frame(&mut self, frame: i64, positions: &[&[[f64; 3]]]) -> Result<(), UsdError> {
-        if positions.len() != self.prims.len() {
+        let point_based: Vec<usize> = (0..self.prims.len())
+            .filter(|&k| !matches!(self.prims[k].kind, PrimKind::Volume { .. }))
+            .collect();
+        if positions.len() != point_based.len() {
             return Err(UsdError::PrimCount {
                 frame,
-                expected: self.prims.len(),
+                expected: point_based.len(),
                 found: positions.len(),
             });
         }
-        let all = positions
+        let all = point_based
             .iter()
-            .enumerate()
-            .map(|(k, p)| self.checked_points(k, frame, p))
+            .zip(positions)
+            .map(|(&k, p)| self.checked_points(k, frame, p))
             .collect::<Result<Vec<_>, _>>()?;
-        for (prim, points) in self.prims.iter_mut().zip(all) {
-            prim.samples.insert(frame, points);
+        for (&k, points) in point_based.iter().zip(all) {
+            self.prims[k].samples.insert(frame, points);
         }
         Ok(())
     }
@@ -486,6 +620,7 @@ impl Prim {
                     .unwrap_or(0.0)
                     * 0.5
             }
+            PrimKind::Volume { fields, files } => return self.fmt_volume(f, fields, files),
         };
         if self.samples.is_empty() {
             write!(f, "{I}float3[] extent = ")?;
@@ -506,6 +641,57 @@ impl Prim {
                 write!(f, "{I}    {frame}: ")?;
                 points_list(f, points)?;
                 writeln!(f, ",")?;
+            }
+            writeln!(f, "{I}}}")?;
+        }
+        if !self.velocities.is_empty() {
+            writeln!(f, "{I}vector3f[] velocities.timeSamples = {{")?;
+            for (frame, v) in &self.velocities {
+                write!(f, "{I}    {frame}: ")?;
+                points_list(f, v)?;
+                writeln!(f, ",")?;
+            }
+            writeln!(f, "{I}}}")?;
+        }
+        writeln!(f, "    }}")
+    }
+
+    fn fmt_volume(
+        &self,
+        f: &mut fmt::Formatter<'_>,
+        fields: &[VolumeField],
+        files: &BTreeMap<i64, (String, [[f32; 3]; 2])>,
+    ) -> fmt::Result {
+        const I: &str = "        ";
+        writeln!(f, "    def Volume \"{}\"", self.name)?;
+        writeln!(f, "    {{")?;
+        writeln!(f, "{I}float3[] extent.timeSamples = {{")?;
+        for (frame, (_, e)) in files {
+            write!(f, "{I}    {frame}: ")?;
+            list(f, e, point)?;
+            writeln!(f, ",")?;
+        }
+        writeln!(f, "{I}}}")?;
+        for field in fields {
+            writeln!(
+                f,
+                "{I}rel field:{} = </World/{}/{}>",
+                field.name, self.name, field.name
+            )?;
+        }
+        for field in fields {
+            writeln!(f)?;
+            writeln!(f, "{I}def OpenVDBAsset \"{}\"", field.name)?;
+            writeln!(f, "{I}{{")?;
+            writeln!(f, "{I}    token fieldDataType = \"{}\"", field.data_type)?;
+            writeln!(f, "{I}    token fieldName = \"{}\"", field.name)?;
+            writeln!(f, "{I}    asset filePath.timeSamples = {{")?;
+            for (frame, (path, _)) in files {
+                writeln!(f, "{I}        {frame}: @{path}@,")?;
+            }
+            writeln!(f, "{I}    }}")?;
+            if let Some(role) = field.role {
+                writeln!(f, "{I}    token vectorDataRoleHint = \"{role}\"")?;
             }
             writeln!(f, "{I}}}")?;
         }

@@ -575,6 +575,21 @@ impl CoupledStepper {
     }
 }
 
+/// The solids' volume as the drag samples carry it [m³] at positions `x`: Σ area × length
+/// over segments and area × thickness over triangles (what buoyancy −ρ V g acts on).
+pub fn solid_volume(elements: &[DragElement], x: &[Vector3<f64>]) -> f64 {
+    elements
+        .iter()
+        .map(|e| match e.shape {
+            DragShape::Segment([a, b], area) => area * (x[b as usize] - x[a as usize]).norm(),
+            DragShape::Triangle([a, b, c], thickness) => {
+                let (pa, pb, pc) = (x[a as usize], x[b as usize], x[c as usize]);
+                0.5 * (pb - pa).cross(&(pc - pa)).norm() * thickness
+            }
+        })
+        .sum()
+}
+
 /// How many points [`sample_points`] makes, without making them (saturating).
 fn sample_count(elements: &[DragElement], x: &[Vector3<f64>], dx: f64) -> u64 {
     let mut total = 0u64;

@@ -40,7 +40,7 @@ pub use collide::{
 };
 pub use coupled::{
     CoupledError, CoupledSettings, CoupledStepper, Coupling, DragElement, DragShape, Exchange,
-    Predicted,
+    Predicted, solid_volume,
 };
 pub use error::SimError;
 pub use fluid::FluidSpec;

@@ -1,6 +1,6 @@
 //! The coupled solver's node types: `coupled.setup` and the stages of the `solver.coupled`
 //! library subgraph (their work is in `coupled.rs`), and the nodes that read a state
-//! (`coupled.scene`, `coupled.probe`, `coupled.momentum`).
+//! (`coupled.scene`, `coupled.momentum`; the fluid's probes and files are in `fields.rs`).
 
 use super::checkpoint::{encode_state, restore_state};
 use super::coupled::*;
@@ -152,44 +152,6 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                 let s = get::<CoupledState>(&v, "state")?;
                 let scene: Scene = s.compiled.scene_at(&s.scene, &s.sim.solid);
                 cx.set("scene", Value::new(scene));
-                Ok(())
-            }))
-        },
-    )?;
-    r.register(
-        NodeSpec::new(
-            "coupled.probe",
-            "reads the fluid of a coupled state: the velocity and pressure at a point, and the largest speed",
-        )
-        .input("state", "coupled", "the coupled state")
-        .output(
-            "velocity",
-            "vec3",
-            "fluid velocity at the point [m/s] (zero without fluid)",
-        )
-        .output("pressure", "float", "pressure of the cell holding the point [Pa], relative to hydrostatic (the grid solves for p − ρ g·x; zero without fluid)")
-        .output("max_speed", "float", "largest face speed [m/s]")
-        .param(
-            ParamSpec::vec3("point", [0.0; 3])
-                .unit("m")
-                .doc("where to sample"),
-        ),
-        |_| {
-            Ok(Kernel::from_fn(|cx| {
-                let v = cx.input("state")?;
-                let s = get::<CoupledState>(&v, "state")?;
-                let p = cx.params().vec3("point")?;
-                let (vel, pressure, max) = match &s.fluid {
-                    Some(g) => (
-                        g.velocity_at(p),
-                        g.pressure_at(p),
-                        g.vel.iter().flatten().fold(0.0f64, |m, u| m.max(u.abs())),
-                    ),
-                    None => ([0.0; 3], 0.0, 0.0),
-                };
-                cx.set("velocity", vel);
-                cx.set("pressure", pressure);
-                cx.set("max_speed", max);
                 Ok(())
             }))
         },

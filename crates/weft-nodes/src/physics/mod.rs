@@ -6,6 +6,7 @@ mod checkpoint;
 mod convert;
 mod coupled;
 mod coupled_nodes;
+mod fields;
 mod geo;
 mod measure;
 mod output;
@@ -30,6 +31,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
     measure::register(r)?;
     wrap::register(r)?;
     coupled_nodes::register(r)?;
+    fields::register(r)?;
     output::register(r)?;
     solver::register(r)
 }

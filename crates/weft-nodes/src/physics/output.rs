@@ -4,11 +4,12 @@
 
 use super::coupled::CoupledState;
 use super::types::Scene;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use weft_graph::{EvalCx, Kernel, NodeError, NodeSpec, ParamSpec, Registry, RegistryError};
 use weft_scene::preview::{Image, PreviewItem, auto_camera, encode_png, render};
 use weft_scene::{
-    ElementKind, Geometry, SceneElement, UsdaScene, bounds, write_obj_curves, write_obj_mesh,
+    ElementKind, Geometry, Rod, SceneElement, UsdaScene, VolumeField, bounds, write_obj_curves,
+    write_obj_mesh,
 };
 
 fn fail(path: &Path, e: impl std::fmt::Display) -> NodeError {
@@ -48,10 +49,76 @@ fn obj(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
 
 /// Accumulates frames of one scene into a .usda file, rewritten after every frame.
 struct UsdOut {
-    scene: Option<(UsdaScene, Vec<String>)>,
+    scene: Option<UsdFile>,
     /// Identity of the upstream definition the samples came from: a change upstream makes
     /// every earlier sample stale, so the file starts over.
     upstream: u128,
+}
+
+/// The file being built: the scene, the element names its point prims came from (in order),
+/// and the volume prim of the `fields` input with its grid names.
+struct UsdFile {
+    usd: UsdaScene,
+    names: Vec<String>,
+    prims: Vec<weft_scene::usd::PrimId>,
+    volume: Option<(weft_scene::usd::PrimId, Vec<String>)>,
+}
+
+/// `target` relative to the directory `base` when both are absolute or both relative (with
+/// `/` separators, as USD asset paths want), else `target` as given.
+fn relative_path(base: &Path, target: &Path) -> String {
+    use std::path::Component;
+    let (b, t): (Vec<Component>, Vec<Component>) =
+        (base.components().collect(), target.components().collect());
+    if base.is_absolute() != target.is_absolute() {
+        return target.display().to_string();
+    }
+    let common = b.iter().zip(&t).take_while(|(x, y)| x == y).count();
+    let mut parts: Vec<String> = vec!["..".to_string(); b.len() - common];
+    parts.extend(
+        t[common..]
+            .iter()
+            .map(|c| c.as_os_str().to_string_lossy().into_owned()),
+    );
+    if parts.first().is_none_or(|p| p != "..") {
+        parts.insert(0, ".".into());
+    }
+    parts.join("/")
+}
+
+/// A world box: minimum and maximum corners [m].
+type Extent = [[f64; 3]; 2];
+
+/// The volume fields a VDB file holds, as USD wants them described, and the box they cover.
+fn volume_fields(file: &Path) -> Result<(Vec<VolumeField>, Option<Extent>), NodeError> {
+    let bytes = std::fs::read(file).map_err(|e| {
+        NodeError::Failed(format!(
+            "input 'fields': cannot read {}: {e}",
+            file.display()
+        ))
+    })?;
+    let info = weft_scene::vdb::describe(&bytes)
+        .map_err(|e| NodeError::Failed(format!("input 'fields': {}: {e}", file.display())))?;
+    let mut extent: Option<Extent> = None;
+    let mut fields = Vec::new();
+    for g in info {
+        let vector = g.tree_type.starts_with("Tree_vec3");
+        if let Some(e) = g.extent {
+            extent = Some(match extent {
+                None => e,
+                Some(x) => [
+                    std::array::from_fn(|k| x[0][k].min(e[0][k])),
+                    std::array::from_fn(|k| x[1][k].max(e[1][k])),
+                ],
+            });
+        }
+        fields.push(VolumeField {
+            data_type: if vector { "float3" } else { "float" },
+            role: (vector && g.name.starts_with("vel")).then_some("Vector"),
+            name: weft_scene::usd::sanitize_identifier(&g.name),
+        });
+    }
+    Ok((fields, extent))
 }
 
 impl weft_graph::Compute for UsdOut {
@@ -59,51 +126,124 @@ impl weft_graph::Compute for UsdOut {
         let scene = cx.input_as::<Scene>("scene")?;
         let path = cx.output_path("path")?;
         let elements = selected(&scene, cx.params().str("elements")?);
+        let elements: Vec<&SceneElement> = elements
+            .into_iter()
+            .filter(|e| matches!(*e.geometry, Geometry::Mesh(_) | Geometry::Curves(_)))
+            .collect();
         let names: Vec<String> = elements.iter().map(|e| e.name.clone()).collect();
-        let upstream = cx.input_structure_hash("scene")?;
+        let fields = match cx.input_opt("fields")? {
+            Some(v) => Some(PathBuf::from(v.get::<String>().ok_or_else(|| {
+                NodeError::Failed("input 'fields': not a path".into())
+            })?)),
+            None => None,
+        };
+        let mut upstream = cx.input_structure_hash("scene")?;
+        if fields.is_some() {
+            upstream ^= cx.input_structure_hash("fields")?.rotate_left(1);
+        }
         let fresh = upstream != self.upstream
-            || self
-                .scene
-                .as_ref()
-                .is_none_or(|(s, n)| *n != names || s.fps() != cx.context().fps);
+            || self.scene.as_ref().is_none_or(|f| {
+                f.names != names
+                    || f.usd.fps() != cx.context().fps
+                    || f.volume.is_some() != fields.is_some()
+            });
         self.upstream = upstream;
         if fresh {
-            let mut u = UsdaScene::new(cx.context().fps).map_err(|e| fail(&path, e))?;
+            let mut usd = UsdaScene::new(cx.context().fps).map_err(|e| fail(&path, e))?;
+            let mut prims = Vec::new();
             for e in &elements {
-                match &*e.geometry {
-                    Geometry::Mesh(m) => u.add_mesh(&e.name, m),
-                    Geometry::Curves(c) => u.add_curves(&e.name, c, None),
+                let id = match &*e.geometry {
+                    Geometry::Mesh(m) => usd.add_mesh(&e.name, m),
+                    Geometry::Curves(c) => {
+                        // Renderers draw a strand 2r wide, r from its Rod SEC.
+                        let width = e.secs.get::<Rod>().map(|r| [2.0 * r.radius]);
+                        usd.add_curves(&e.name, c, width.as_ref().map(|w| &w[..]))
+                    }
                     Geometry::Points(_) | Geometry::None => continue,
                 }
                 .map_err(|err| fail(&path, err))?;
+                prims.push(id);
             }
-            self.scene = Some((u, names));
+            let volume = match &fields {
+                Some(file) => {
+                    let (f, _) = volume_fields(file)?;
+                    let stem = file
+                        .file_name()
+                        .and_then(|n| n.to_str())
+                        .and_then(|n| n.split('.').next())
+                        .unwrap_or("fields");
+                    let id = usd.add_volume(stem, &f).map_err(|e| fail(&path, e))?;
+                    Some((id, f.into_iter().map(|f| f.name).collect()))
+                }
+                None => None,
+            };
+            self.scene = Some(UsdFile {
+                usd,
+                names,
+                prims,
+                volume,
+            });
         }
-        let (u, _) = self.scene.as_mut().expect("built above");
-        let positions: Vec<&[[f64; 3]]> = elements
-            .iter()
-            .filter(|e| matches!(*e.geometry, Geometry::Mesh(_) | Geometry::Curves(_)))
-            .map(|e| e.geometry.positions())
-            .collect();
-        // Every frame's points stay in memory (f32) until the run ends.
-        let frames = u
+        let file = self.scene.as_mut().expect("built above");
+        // Every frame's points and velocities stay in memory (f32) until the run ends.
+        let frames = file
+            .usd
             .frame_range()
             .map_or(0, |(a, b)| (b - a + 1).max(0) as u64)
             + 1;
-        let points: u64 = positions.iter().map(|p| p.len() as u64).sum();
+        let points: u64 = elements.iter().map(|e| e.vertex_count() as u64).sum();
         weft_graph::memory::check_within(
-            weft_graph::memory::product(&[frames, points, 12]),
+            weft_graph::memory::product(&[frames, points, 24]),
             cx.memory_budget(),
             || format!("{frames} frames of {points} points in one USD file"),
             "write fewer frames, or an OBJ sequence (output.obj), which holds one frame at a time",
         )?;
-        u.add_frame(cx.frame(), &positions)
-            .map_err(|e| fail(&path, e))?;
-        weft_graph::atomic_write_with(&path, |w| u.write(&mut &mut *w))
+        let frame = cx.frame();
+        for (e, &id) in elements.iter().zip(&file.prims) {
+            file.usd
+                .set_points(id, frame, e.geometry.positions())
+                .map_err(|err| fail(&path, err))?;
+            // The solver's velocities (simulated elements carry them as a channel).
+            if let Some(v) = e
+                .vec3_channel("velocity")
+                .filter(|v| v.len() == e.vertex_count())
+            {
+                file.usd
+                    .set_velocities(id, frame, v)
+                    .map_err(|err| fail(&path, err))?;
+            }
+        }
+        if let (Some(vdb), Some((id, names))) = (&fields, &file.volume) {
+            let (f, extent) = volume_fields(vdb)?;
+            let now: Vec<String> = f.into_iter().map(|f| f.name).collect();
+            if &now != names {
+                return Err(NodeError::Failed(format!(
+                    "input 'fields': {} holds grids {now:?}, earlier frames {names:?}; a volume keeps its fields",
+                    vdb.display()
+                )));
+            }
+            let base = path.parent().unwrap_or(Path::new("."));
+            let asset = relative_path(base, vdb);
+            let extent = extent.unwrap_or([[0.0; 3]; 2]);
+            file.usd
+                .set_volume_file(*id, frame, &asset, extent)
+                .map_err(|err| fail(&path, err))?;
+        }
+        weft_graph::atomic_write_with(&path, |w| file.usd.write(&mut &mut *w))
             .map_err(|e| fail(&path, e))?;
         cx.set("path", path.display().to_string());
         Ok(())
     }
+}
+
+/// A file name prefix as a parameter gives it: non-empty, no directory parts.
+pub(super) fn file_prefix(prefix: &str) -> Result<&str, NodeError> {
+    if prefix.is_empty() || prefix.contains(['/', '\\']) || prefix.contains("..") {
+        return Err(NodeError::Failed(format!(
+            "param 'prefix': must be a non-empty file name prefix without '/', '\\' or '..', got {prefix:?}"
+        )));
+    }
+    Ok(prefix)
 }
 
 fn color(kind: ElementKind) -> [u8; 3] {
@@ -252,12 +392,7 @@ fn preview(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let scene = cx.input_as::<Scene>("scene")?;
     let p = cx.params().clone();
     let (w, h) = (p.usize("width")? as u32, p.usize("height")? as u32);
-    let prefix = p.str("prefix")?;
-    if prefix.is_empty() || prefix.contains(['/', '\\']) || prefix.contains("..") {
-        return Err(NodeError::Failed(format!(
-            "param 'prefix': must be a non-empty file name prefix without '/', '\\' or '..', got {prefix:?}"
-        )));
-    }
+    let prefix = file_prefix(p.str("prefix")?)?;
     // The render (colour, depth), a fluid panel up to four times as wide with its speeds,
     // and the two side by side: about 40 bytes a pixel of the tallest layout.
     let need = weft_graph::memory::product(&[w as u64 * 5, h as u64, 40]);
@@ -340,8 +475,9 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         |_| Ok(Kernel::from_fn(obj)),
     )?;
     r.register(
-        NodeSpec::new("output.usd", "writes a .usda file with time-sampled points: Mesh prims for cloth and colliders, BasisCurves for hair")
+        NodeSpec::new("output.usd", "writes a .usda file with time-sampled points: Mesh prims for cloth and colliders, BasisCurves for hair (widths 2r from the Rod SEC), velocities where the solver gives them, and with 'fields' connected a Volume of the fluid's OpenVDB files")
             .input("scene", "scene", "the scene to write")
+            .input_default("fields", "string", serde_json::json!(null), "the path of this frame's .vdb file (output.vdb's path): adds a Volume prim named after the files' prefix, one OpenVDBAsset per grid, its filePath time-sampled (relative to the .usda)")
             .output("path", "string", "the file written")
             .param(ParamSpec::string("path", "out/scene.usda").doc("output file (under --out when given, else the working directory; rewritten with all frames so far after each frame)"))
             .param(elements()),
