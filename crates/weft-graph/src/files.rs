@@ -50,9 +50,18 @@ pub fn atomic_write_with(
         .unwrap_or(Path::new("."));
     std::fs::create_dir_all(dir)?;
     sweep_stale_temporaries(dir);
-    let mut tmp = tempfile::Builder::new()
-        .prefix(&format!("{TMP_PREFIX}{}-", std::process::id()))
-        .tempfile_in(dir)?;
+    let prefix = format!("{TMP_PREFIX}{}-", std::process::id());
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(&prefix);
+    // A temporary file is private (0600) by default; the file it becomes is an output others
+    // read (a renderer on a farm, a colleague), so it gets the mode any program's new file
+    // gets: 0666 less the umask.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        builder.permissions(std::fs::Permissions::from_mode(0o666));
+    }
+    let mut tmp = builder.tempfile_in(dir)?;
     {
         let mut w = std::io::BufWriter::new(tmp.as_file_mut());
         fill(&mut w)?;
@@ -144,5 +153,23 @@ mod tests {
         // The old content is intact and no temporary file is left behind.
         assert_eq!(std::fs::read(&path).unwrap(), b"old");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    /// Outputs are readable by others as any new file is (0666 less the umask), not private
+    /// like the temporary they are written through.
+    #[cfg(unix)]
+    #[test]
+    fn written_files_get_the_usual_mode() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("out.vdb");
+        atomic_write(&path, b"x").unwrap();
+        let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
+        // The umask, read back from a file created the ordinary way.
+        let plain = dir.path().join("plain");
+        std::fs::write(&plain, b"x").unwrap();
+        let want = std::fs::metadata(&plain).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode, want, "{mode:o} vs {want:o}");
+        assert_ne!(mode & 0o044, 0, "group or others can read: {mode:o}");
     }
 }
