@@ -227,7 +227,7 @@ pub(crate) fn encode_state(v: &Value) -> Option<Vec<u8>> {
     }
     w.u64(s.iteration as u64)
         .f64s(&s.residual)
-        .f64s(&s.exchange);
+        .f64s(&[s.exchange, s.transport].concat());
     write_inputs(&mut w, &s.sim);
     Some(w.finish())
 }
@@ -254,9 +254,12 @@ pub(crate) fn restore_state(
         [a, b] => [a, b],
         _ => return Err("expected two residuals".into()),
     };
-    let exchange = match r.f64s()?[..] {
-        [a, b, c] => [a, b, c],
-        _ => return Err("expected a momentum".into()),
+    // Exchange and transport (checkpoints written before transport was kept hold the
+    // exchange alone).
+    let (exchange, transport) = match r.f64s()?[..] {
+        [a, b, c] => ([a, b, c], [0.0; 3]),
+        [a, b, c, d, e, f] => ([a, b, c], [d, e, f]),
+        _ => return Err("expected two momenta".into()),
     };
     let sim = read_inputs(&mut r, sim, &t.sim)?;
     r.end()?;
@@ -274,6 +277,7 @@ pub(crate) fn restore_state(
         relaxation: Relaxation::default(),
         residual,
         exchange,
+        transport,
     }))
 }
 

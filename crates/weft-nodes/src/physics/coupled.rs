@@ -52,6 +52,10 @@ pub struct CoupledState {
     /// u* the advected velocity the step started from (what the solids' momentum change
     /// balances; zero for one-way coupling and without fluid).
     pub exchange: [f64; 3],
+    /// The rest of the fluid's momentum change over the step [kg·m/s]: Σ ρα u now − Σ ρα u
+    /// at the step's start − `exchange`, what advection (not conservative) and the solids'
+    /// moving fractions changed.
+    pub transport: [f64; 3],
 }
 
 /// What a step starts from, fixed across its iterations.
@@ -66,6 +70,8 @@ pub struct StepStart {
     u_star: Option<Arc<MacGrid>>,
     /// The frozen vertices' inputs and weights over the step.
     freeze: weft_sim::FreezeFrame,
+    /// The fluid's momentum at the step's start, Σ ρ α u Δx³ [kg·m/s] (zero without fluid).
+    fluid_momentum: [f64; 3],
 }
 
 /// What solids and fluid exchange in one iteration.
@@ -250,6 +256,7 @@ pub(super) fn setup(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeE
         relaxation: Relaxation::default(),
         residual: [0.0; 2],
         exchange: [0.0; 3],
+        transport: [0.0; 3],
     };
     cx.set("state", Value::new(state));
     Ok(())
@@ -313,6 +320,10 @@ pub(super) fn predict(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), Nod
         }
         _ => None,
     };
+    let fluid_momentum = s
+        .fluid
+        .as_ref()
+        .map_or([0.0; 3], |g| g.momentum(settings(&compiled).fluid.density));
     cx.set(
         "step",
         Value::new(StepStart {
@@ -324,6 +335,7 @@ pub(super) fn predict(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), Nod
             scene,
             u_star,
             freeze,
+            fluid_momentum,
         }),
     );
     Ok(())
@@ -572,6 +584,12 @@ pub(super) fn update(_: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeE
         (Some(u), Some(u_star), _) => u.momentum_gain(u_star, rho),
         _ => [0.0; 3],
     };
+    // The rest of the fluid's momentum change: advection (semi-Lagrangian, not
+    // conservative) and the solids' fractions moving over the faces.
+    let transport = fluid.as_ref().map_or([0.0; 3], |u| {
+        let now = u.momentum(rho);
+        std::array::from_fn(|k| now[k] - step.fluid_momentum[k] - exchange[k])
+    });
     let next = CoupledState {
         compiled: step.compiled.clone(),
         sim: SimState {
@@ -586,6 +604,7 @@ pub(super) fn update(_: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeE
         relaxation: solid.relaxation.clone(),
         residual: [dv, du],
         exchange,
+        transport,
     };
     cx.set("iterate", Value::new(next));
     cx.set("converged", converged);

@@ -189,6 +189,7 @@ fn diagnostics(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     cx.set("solid_kinetic_energy", solid_ke);
     cx.set("fluid_kinetic_energy", fluid_ke);
     cx.set("exchange", s.exchange);
+    cx.set("transport", s.transport);
     cx.set("wall_impulse", walls);
     cx.set("gravity_impulse", gravity);
     cx.set("max_divergence", divergence);
@@ -352,7 +353,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
     r.register(
         NodeSpec::new(
             "coupled.diagnostics",
-            "conservation diagnostics of a coupled state, per frame: momentum and kinetic energy of solids and fluid, the impulses of the last step (coupling, walls and obstacles, gravity), the largest divergence and the fluid's volume. In a closed box, total_momentum(f) − total_momentum(f−1) = wall_impulse + gravity_impulse, up to the coupling tolerance and what advection does not conserve",
+            "conservation diagnostics of a coupled state, per frame: momentum and kinetic energy of solids and fluid, the impulses of the last step (coupling, walls and obstacles, gravity), the largest divergence and the fluid's volume. In a closed box, total_momentum(f) − total_momentum(f−1) = wall_impulse + gravity_impulse + transport, up to the coupling tolerance",
         )
         .input("state", "coupled", "the coupled state")
         .output("solid_momentum", "vec3", "Σ m v over the simulated vertices [kg·m/s]")
@@ -361,6 +362,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         .output("solid_kinetic_energy", "float", "½ Σ m |v|² [J]")
         .output("fluid_kinetic_energy", "float", "½ Σ ρ α u² Δx³ over distinct faces [J]")
         .output("exchange", "vec3", "what the coupling (drag and pressure) gave the fluid over the last step, Σ ρ α (u − u*) Δx³ [kg·m/s], u* the advected velocity")
+        .output("transport", "vec3", "the rest of the fluid's momentum change over the last step, Σ ρα u − (Σ ρα u at the step's start) − exchange [kg·m/s]: what advection (semi-Lagrangian, not conservative) and the solids' moving fractions created; fluid_momentum changes by exchange + transport")
         .output("wall_impulse", "vec3", "what the domain's walls and inflow sides and the obstacles in it gave fluid and solids through the (reduced) pressure over the last step [N·s]; open and periodic sides give none")
         .output("gravity_impulse", "vec3", "h g (M − ρ_f V): the solids' weight less their buoyancy over the last step [N·s] (with the reduced pressure, the fluid's own weight is balanced hydrostatically and appears in neither term)")
         .output("max_divergence", "float", "largest |∇·(α u + (1 − α) v)| over the cells [1/s]")
