@@ -62,6 +62,9 @@ struct UsdFile {
     names: Vec<String>,
     prims: Vec<weft_scene::usd::PrimId>,
     volume: Option<(weft_scene::usd::PrimId, Vec<String>)>,
+    /// Per prim, the last frame written and its positions (for the velocities of elements the
+    /// solver does not move).
+    last: Vec<Option<(i64, Vec<[f64; 3]>)>>,
 }
 
 /// `target` relative to the directory `base` when both are absolute or both relative (with
@@ -177,11 +180,13 @@ impl weft_graph::Compute for UsdOut {
                 }
                 None => None,
             };
+            let last = vec![None; prims.len()];
             self.scene = Some(UsdFile {
                 usd,
                 names,
                 prims,
                 volume,
+                last,
             });
         }
         let file = self.scene.as_mut().expect("built above");
@@ -199,19 +204,31 @@ impl weft_graph::Compute for UsdOut {
             "write fewer frames, or an OBJ sequence (output.obj), which holds one frame at a time",
         )?;
         let frame = cx.frame();
-        for (e, &id) in elements.iter().zip(&file.prims) {
+        let fps = cx.context().fps;
+        for ((e, &id), last) in elements.iter().zip(&file.prims).zip(&mut file.last) {
+            let x = e.geometry.positions();
             file.usd
-                .set_points(id, frame, e.geometry.positions())
+                .set_points(id, frame, x)
                 .map_err(|err| fail(&path, err))?;
-            // The solver's velocities (simulated elements carry them as a channel).
-            if let Some(v) = e
-                .vec3_channel("velocity")
-                .filter(|v| v.len() == e.vertex_count())
-            {
-                file.usd
-                    .set_velocities(id, frame, v)
-                    .map_err(|err| fail(&path, err))?;
-            }
+            // Simulated elements carry the solver's velocities as a channel. Colliders and
+            // other kinematic elements move by their animation: they get their mean velocity
+            // over the frame that ends here, (x_f − x_{f−1})·fps (zero at the first frame
+            // written), which is what motion blur over that frame needs.
+            let v: Vec<[f64; 3]> = match e.vec3_channel("velocity") {
+                Some(v) if v.len() == x.len() => v.to_vec(),
+                _ => match last {
+                    Some((f, prev)) if *f == frame - 1 && prev.len() == x.len() => x
+                        .iter()
+                        .zip(prev.iter())
+                        .map(|(a, b)| std::array::from_fn(|k| (a[k] - b[k]) * fps))
+                        .collect(),
+                    _ => vec![[0.0; 3]; x.len()],
+                },
+            };
+            file.usd
+                .set_velocities(id, frame, &v)
+                .map_err(|err| fail(&path, err))?;
+            *last = Some((frame, x.to_vec()));
         }
         if let (Some(vdb), Some((id, names))) = (&fields, &file.volume) {
             let (f, extent) = volume_fields(vdb)?;
@@ -475,7 +492,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         |_| Ok(Kernel::from_fn(obj)),
     )?;
     r.register(
-        NodeSpec::new("output.usd", "writes a .usda file with time-sampled points: Mesh prims for cloth and colliders, BasisCurves for hair (widths 2r from the Rod SEC), velocities where the solver gives them, and with 'fields' connected a Volume of the fluid's OpenVDB files")
+        NodeSpec::new("output.usd", "writes a .usda file with time-sampled points: Mesh prims for cloth and colliders, BasisCurves for hair (widths 2r from the Rod SEC), velocities on every prim (the solver's for simulated elements; for colliders their mean velocity over the frame, (x_f − x_{f−1})·fps), and with 'fields' connected a Volume of the fluid's OpenVDB files")
             .input("scene", "scene", "the scene to write")
             .input_default("fields", "string", serde_json::json!(null), "the path of this frame's .vdb file (output.vdb's path): adds a Volume prim named after the files' prefix, one OpenVDBAsset per grid, its filePath time-sampled (relative to the .usda)")
             .output("path", "string", "the file written")
