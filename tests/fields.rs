@@ -325,15 +325,16 @@ fn strand_in_a_box() -> Graph {
 }
 
 /// Conservation in a closed box (`coupled.diagnostics`): over 1 s (50 steps of 20 ms) the
-/// change of total momentum (strand + water) equals what the walls gave through the pressure
-/// (plus gravity's, zero here) plus `transport`, the momentum advection and the moving solid
-/// fractions change (the semi-Lagrangian scheme does not conserve it; reported, not hidden).
-/// Equivalently the coupling conserves: the strand's change plus the water's coupling gain
-/// equals the wall impulse, per step. Tolerance: 1e-8 of the strand's initial momentum per
-/// step and over the second (the coupling and pressure solves stop at 1e-10 m/s and 1e-12
-/// 1/s, about 1e-13 kg·m/s here). Also: the strand slows, the water starts to move, the
-/// divergence stays at the pressure tolerance, the water's volume is the box's less the
-/// strand's to 1e-12 m³.
+/// strand's momentum change plus what the coupling gave the water (`exchange`) equals what
+/// the walls gave both through the pressure (`wall_impulse`; gravity's is zero here), per
+/// step and summed over the second: the coupled step conserves momentum but for the walls.
+/// (The water's momentum changes by `exchange` + `transport`, transport being what the
+/// semi-Lagrangian advection and the moving solid fractions do not conserve; it is the
+/// remainder by definition, so it is reported and bounded, not a check.) Tolerance: 1e-8 of
+/// the strand's initial momentum (the coupling and pressure solves stop at 1e-10 m/s and
+/// 1e-12 1/s, about 1e-13 kg·m/s here). Also: the strand slows, the water starts to move,
+/// the divergence stays at the pressure tolerance, the water's volume is the box's less the
+/// strand's to 1e-9 m³.
 #[test]
 fn momentum_balance_in_a_closed_box() {
     let fps = 50.0;
@@ -350,24 +351,22 @@ fn momentum_balance_in_a_closed_box() {
             .get::<f64>()
             .unwrap()
     };
-    let p0 = at(&mut g, "total", 0);
     let s0 = at(&mut g, "solid", 0);
     let scale = norm(s0);
-    let (mut prev_solid, mut prev_total) = (s0, p0);
-    let (mut walls_sum, mut transport_sum, mut worst_step) = ([0.0; 3], [0.0; 3], 0.0f64);
-    let mut worst_div = 0.0f64;
+    let mut prev_solid = s0;
+    let (mut walls_sum, mut exchange_sum, mut transport_sum) = ([0.0; 3], [0.0; 3], [0.0; 3]);
+    let (mut worst_step, mut worst_div) = (0.0f64, 0.0f64);
     for f in 1..=50 {
         let solid = at(&mut g, "solid", f);
-        let total = at(&mut g, "total", f);
         let (ex, tr) = (at(&mut g, "exchange", f), at(&mut g, "transport", f));
         let (walls, gravity) = (at(&mut g, "walls", f), at(&mut g, "gravity", f));
         assert_eq!(gravity, [0.0; 3]);
-        let step: [f64; 3] = std::array::from_fn(|k| solid[k] - prev_solid[k] + ex[k] - walls[k]);
-        let whole: [f64; 3] =
-            std::array::from_fn(|k| total[k] - prev_total[k] - walls[k] - gravity[k] - tr[k]);
-        worst_step = worst_step.max(norm(step)).max(norm(whole));
+        let step: [f64; 3] =
+            std::array::from_fn(|k| solid[k] - prev_solid[k] + ex[k] - walls[k] - gravity[k]);
+        worst_step = worst_step.max(norm(step));
         for k in 0..3 {
             walls_sum[k] += walls[k];
+            exchange_sum[k] += ex[k];
             transport_sum[k] += tr[k];
         }
         worst_div = worst_div.max(scalar(&mut g, "divergence", f));
@@ -379,12 +378,10 @@ fn momentum_balance_in_a_closed_box() {
             "frame {f}: volume {volume} vs {want}"
         );
         prev_solid = solid;
-        prev_total = total;
     }
-    let total = at(&mut g, "total", 50);
-    let drift: [f64; 3] =
-        std::array::from_fn(|k| total[k] - p0[k] - walls_sum[k] - transport_sum[k]);
     let (solid, fluid_energy) = (at(&mut g, "solid", 50), scalar(&mut g, "fluid_energy", 50));
+    let drift: [f64; 3] =
+        std::array::from_fn(|k| solid[k] - s0[k] + exchange_sum[k] - walls_sum[k]);
     eprintln!(
         "closed box, 1 s: strand momentum {:.4e} → {:.4e} kg·m/s; wall impulse {:.3e}; transport {:.3e} ({:.1e} of the start); worst step imbalance {:.2e}, over the second {:.2e} ({:.1e} relative); water energy {fluid_energy:.3e} J; divergence ≤ {worst_div:.1e} 1/s",
         scale,
@@ -403,6 +400,11 @@ fn momentum_balance_in_a_closed_box() {
     assert!(
         norm(drift) <= 1e-8 * scale,
         "{drift:?} over 1 s vs {scale:e}"
+    );
+    // Advection's non-conservation is small here (slow water): reported, bounded loosely.
+    assert!(
+        norm(transport_sum) <= 1e-2 * scale,
+        "transport {transport_sum:?}"
     );
     assert!(
         norm(solid) < 0.9 * scale,
@@ -539,4 +541,46 @@ fn a_moving_obstacle_pushes_the_water_through_the_pressure() {
         largest > 1e-6,
         "the obstacle moved the water: {largest:e} N·s"
     );
+}
+
+/// Still water in a closed 0.2 m box under gravity, as a user would probe it.
+const STILL_WATER: &str = include_str!("fields/still_water.json");
+
+/// The probes' values on a case with a known answer: still water under gravity keeps still,
+/// its reduced pressure stays 0 and the absolute one is hydrostatic, ρ g × the depth of the
+/// probed cell's centre below the domain's top (ρ = 998.2 kg/m³, g = 9.81 m/s²); no solid,
+/// no vorticity. The vertical line probe's samples sit at the 10 cell centres from the
+/// bottom: pressures ρ g (0.19 − y), distances 0, 0.02, … 0.18 m. Tolerance 1e-9 Pa (the
+/// pressure solve's warm start from zero has nothing to solve).
+#[test]
+fn probes_read_still_water_as_hydrostatics_says() {
+    let mut g = graph(STILL_WATER);
+    let rho_g = 998.2 * 9.81;
+    for f in [0, 2] {
+        let p = f64_at(&mut g, "pressure", f);
+        let abs = f64_at(&mut g, "absolute", f);
+        assert!(p.abs() < 1e-9, "frame {f}: reduced pressure {p}");
+        // The probe at y = 0.07 is in the cell centred at 0.07: 0.13 m below the top.
+        assert!(
+            (abs - rho_g * 0.13).abs() < 1e-9,
+            "frame {f}: absolute {abs}"
+        );
+        assert_eq!(f64_at(&mut g, "solid", f), 0.0);
+        assert_eq!(vec3_at(&mut g, "vorticity", f), [0.0; 3]);
+        assert_eq!(vec3_at(&mut g, "velocity", f), [0.0; 3]);
+        let column = g.pull("column", Context::new(f)).unwrap();
+        let column = column.get::<Vec<f64>>().unwrap().clone();
+        let depth = g.pull("depth", Context::new(f)).unwrap();
+        let depth = depth.get::<Vec<f64>>().unwrap().clone();
+        assert_eq!(column.len(), 10);
+        for k in 0..10 {
+            let y = 0.01 + 0.02 * k as f64;
+            assert!(
+                (column[k] - rho_g * (0.2 - y)).abs() < 1e-9,
+                "sample {k}: {}",
+                column[k]
+            );
+            assert!((depth[k] - 0.02 * k as f64).abs() < 1e-15);
+        }
+    }
 }

@@ -62,7 +62,8 @@ def main(spec_path):
                 fail(f"{name} frame {frame}: filePath {p} resolves to "
                      f"{p.resolvedPath if p else None}, expected {file}")
     extent = vol.GetExtentAttr().Get(Usd.TimeCode(0.0))
-    if extent is None or any(abs(a - b) > 1e-6 for a, b in zip(extent[1], (0.2, 0.2, 0.2))):
+    if extent is None or any(abs(a - b) > 1e-6 for a, b in
+                             zip(list(extent[0]) + list(extent[1]), (0, 0, 0, 0.2, 0.2, 0.2))):
         fail(f"volume extent {extent}")
     print(f"USD {'.'.join(map(str, Usd.GetVersion()))}: {len(validators)} validators, no errors; "
           f"{checked} velocities, widths, {len(fields)} fields over {len(vol_spec['files'])} frames match")

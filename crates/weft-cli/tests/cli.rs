@@ -312,3 +312,43 @@ fn bench_coupling_quick_maps_where_staggered_fails_and_newton_holds() {
         ],
     );
 }
+
+/// `weft run` writes a list output and a vec3 output as columns of outputs.csv: NAME.0 …
+/// NAME.N−1 and NAME.x, NAME.y, NAME.z, a row per frame.
+#[test]
+fn outputs_csv_spreads_lists_and_vectors_over_columns() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("still.json");
+    std::fs::write(
+        &path,
+        include_str!("../../../tests/fields/still_water.json"),
+    )
+    .unwrap();
+    let out = dir.path().join("run");
+    let o = Command::new(env!("CARGO_BIN_EXE_weft"))
+        .args(["run", path.to_str().unwrap(), "--frames", "0..2", "--out"])
+        .arg(&out)
+        .args(["--no-checkpoints", "-q"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let csv = std::fs::read_to_string(out.join("outputs.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    let head: Vec<&str> = lines[0].split(',').collect();
+    assert_eq!(lines.len(), 4, "{csv}");
+    assert_eq!(
+        &head[..4],
+        ["frame", "absolute", "column.0", "column.1"],
+        "{csv}"
+    );
+    assert!(head.contains(&"column.9") && !head.contains(&"column.10"));
+    assert!(head.contains(&"velocity.x") && head.contains(&"vorticity.z"));
+    assert_eq!(head.len(), 1 + 1 + 10 + 10 + 1 + 1 + 3 + 3, "{:?}", head);
+    let row: Vec<&str> = lines[2].split(',').collect();
+    assert_eq!(row.len(), head.len());
+    let col = |name: &str| row[head.iter().position(|h| *h == name).unwrap()];
+    assert_eq!(col("frame"), "1");
+    let top: f64 = col("column.9").parse().unwrap();
+    assert!((top - 998.2 * 9.81 * 0.01).abs() < 1e-9, "{top}");
+    assert_eq!(col("depth.9").parse::<f64>().unwrap(), 0.18);
+}

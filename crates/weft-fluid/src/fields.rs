@@ -131,6 +131,7 @@ impl MacGrid {
             let closed = |b: Boundary| matches!(b, Boundary::Wall | Boundary::Inflow(_));
             let (lo_closed, hi_closed) =
                 (closed(dom.boundaries.lo[a]), closed(dom.boundaries.hi[a]));
+            let periodic = dom.boundaries.is_periodic(a);
             let d = dom.face_dims(a);
             for k in 0..d[2] {
                 for jj in 0..d[1] {
@@ -145,6 +146,10 @@ impl MacGrid {
                         if along == 0 {
                             if lo_closed {
                                 j[a] += cell(0) * area;
+                            } else if periodic && self.alpha[a][dom.face(a, i, jj, k)] == 0.0 {
+                                // The seam's face, between cell n − 1 and cell 0 (face n is
+                                // its copy, which the periodic side skips below).
+                                j[a] += (cell(0) - cell(n - 1)) * area;
                             }
                         } else if along == n {
                             if hi_closed {
@@ -276,5 +281,40 @@ mod tests {
             }
         }
         assert!((interior - want).abs() < 1e-15);
+    }
+
+    #[test]
+    fn an_obstacle_face_on_a_periodic_seam_counts() {
+        use crate::grid::Axis;
+        let d = Domain::new(
+            [0.0; 3],
+            [0.4, 0.2, 0.2],
+            0.1,
+            Boundaries::periodic(&[Axis::X]),
+            None,
+        )
+        .unwrap();
+        let mut g = MacGrid::new(d);
+        let dom = g.domain.clone();
+        let mut p = vec![0.0; dom.cell_count()];
+        g.for_each_cell(|n, c| p[n] = 1.0 + c[0] as f64);
+        g.pressure = p;
+        // No obstacle: a periodic axis has no walls, whatever the pressure.
+        assert_eq!(g.boundary_impulse(1.0)[0], 0.0);
+        // The seam's faces (x = 0, and their copies at x = 0.4) inside an obstacle: each
+        // gives (p(cell 0) − p(cell 3)) Δx², as an interior obstacle face would.
+        for k in 0..2 {
+            for j in 0..2 {
+                for i in [0, 4] {
+                    let f = dom.face(0, i, j, k);
+                    g.alpha[0][f] = 0.0;
+                }
+            }
+        }
+        let want = 4.0 * (1.0 - 4.0) * 0.01;
+        assert!((g.boundary_impulse(1.0)[0] - want).abs() < 1e-15);
+        // The same as what the faces that carry velocity (1..3) get, Σ −∇p Δx³.
+        let open_faces = -4.0 * 3.0 * 0.01;
+        assert!((g.boundary_impulse(1.0)[0] - open_faces).abs() < 1e-15);
     }
 }

@@ -112,9 +112,12 @@ enum PrimKind {
     /// A `Volume` of OpenVDB fields: per frame the file and the volume's extent.
     Volume {
         fields: Vec<VolumeField>,
-        files: BTreeMap<i64, (String, [[f32; 3]; 2])>,
+        files: VolumeFiles,
     },
 }
+
+/// A volume's file and extent per frame.
+type VolumeFiles = BTreeMap<i64, (String, Option<[[f32; 3]; 2]>)>;
 
 /// One field of a volume prim: the grid's name in the VDB files and its data type.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -466,7 +469,8 @@ impl UsdaScene {
     }
 
     /// Sets the VDB file of a volume prim at `frame` (an asset path, best relative to the
-    /// `.usda` file) and the volume's extent there (its box's minimum and maximum corners).
+    /// `.usda` file) and, when known, the volume's extent there (its box's minimum and maximum
+    /// corners; a frame without one writes no extent sample).
     ///
     /// # Errors
     ///
@@ -477,7 +481,7 @@ impl UsdaScene {
         prim: PrimId,
         frame: i64,
         path: &str,
-        extent: [[f64; 3]; 2],
+        extent: Option<[[f64; 3]; 2]>,
     ) -> Result<(), UsdError> {
         let Some(Prim {
             name,
@@ -493,8 +497,8 @@ impl UsdaScene {
                 message: format!("asset path {path:?} is empty or holds '@' or a line break"),
             });
         }
-        let e32 = extent.map(|c| c.map(|x| x as f32));
-        if !e32.iter().flatten().all(|x| x.is_finite()) {
+        let e32 = extent.map(|e| e.map(|c| c.map(|x| x as f32)));
+        if !e32.iter().flatten().flatten().all(|x| x.is_finite()) {
             return Err(UsdError::BadTopology {
                 prim: name.clone(),
                 message: format!("extent {extent:?} is not finite"),
@@ -660,18 +664,23 @@ impl Prim {
         &self,
         f: &mut fmt::Formatter<'_>,
         fields: &[VolumeField],
-        files: &BTreeMap<i64, (String, [[f32; 3]; 2])>,
+        files: &VolumeFiles,
     ) -> fmt::Result {
         const I: &str = "        ";
         writeln!(f, "    def Volume \"{}\"", self.name)?;
         writeln!(f, "    {{")?;
-        writeln!(f, "{I}float3[] extent.timeSamples = {{")?;
-        for (frame, (_, e)) in files {
-            write!(f, "{I}    {frame}: ")?;
-            list(f, e, point)?;
-            writeln!(f, ",")?;
+        if files.values().any(|(_, e)| e.is_some()) {
+            writeln!(f, "{I}float3[] extent.timeSamples = {{")?;
+            for (frame, e) in files
+                .iter()
+                .filter_map(|(k, (_, e))| Some((k, e.as_ref()?)))
+            {
+                write!(f, "{I}    {frame}: ")?;
+                list(f, e, point)?;
+                writeln!(f, ",")?;
+            }
+            writeln!(f, "{I}}}")?;
         }
-        writeln!(f, "{I}}}")?;
         for field in fields {
             writeln!(
                 f,

@@ -204,7 +204,14 @@ pub fn describe(bytes: &[u8]) -> Result<Vec<GridInfo>, VdbError> {
     }
     r.skip(36)?;
     r.skip_meta()?;
-    let count = r.u32()?;
+    let count = r.u32()? as usize;
+    // A descriptor takes at least 36 bytes: a count beyond what is left is damage.
+    if count > (bytes.len() - r.at) / 36 {
+        return Err(VdbError::Format(format!(
+            "{count} grids in {} bytes",
+            bytes.len()
+        )));
+    }
     let mut out = Vec::new();
     for _ in 0..count {
         let name = r.string()?;
@@ -247,6 +254,13 @@ pub fn describe(bytes: &[u8]) -> Result<Vec<GridInfo>, VdbError> {
             tree_type,
             extent,
         });
+        // Grids follow one another: an end that does not lie past this grid's data is damage.
+        if end <= grid || (end as usize) < r.at {
+            return Err(VdbError::Format(format!(
+                "grid {:?} ends at byte {end}, before its data",
+                out.last().map_or("", |g: &GridInfo| g.name.as_str())
+            )));
+        }
         r.seek(end)?;
     }
     Ok(out)
@@ -1014,5 +1028,23 @@ mod tests {
             assert!(describe(&bytes[..cut]).is_err(), "cut at {cut}");
         }
         assert!(describe(b"not a vdb file at all").is_err());
+        // A grid whose end points back at its own descriptor would be read again and again.
+        let mut looping = bytes.clone();
+        let first = info_offsets(&bytes);
+        looping[first.0..first.0 + 8].copy_from_slice(&(first.1 as i64).to_le_bytes());
+        assert!(describe(&looping).is_err());
+    }
+
+    /// Where the first grid's end offset is stored, and where its descriptor starts.
+    fn info_offsets(bytes: &[u8]) -> (usize, usize) {
+        let mut r = Cursor { b: bytes, at: 0 };
+        r.skip(8 + 12 + 1 + 36).unwrap();
+        r.skip_meta().unwrap();
+        r.u32().unwrap();
+        let start = r.at;
+        r.string().unwrap();
+        r.string().unwrap();
+        r.string().unwrap();
+        (r.at + 16, start)
     }
 }

@@ -353,7 +353,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
     r.register(
         NodeSpec::new(
             "coupled.diagnostics",
-            "conservation diagnostics of a coupled state, per frame: momentum and kinetic energy of solids and fluid, the impulses of the last step (coupling, walls and obstacles, gravity), the largest divergence and the fluid's volume. In a closed box, total_momentum(f) − total_momentum(f−1) = wall_impulse + gravity_impulse + transport, up to the coupling tolerance",
+            "conservation diagnostics of a coupled state, per frame: momentum and kinetic energy of solids and fluid, the impulses of the last step (coupling, walls and obstacles, gravity), the largest divergence and the fluid's volume. In a closed box with free solids (attachments' forces are in no term), solid_momentum(f) − solid_momentum(f−1) + exchange = wall_impulse + gravity_impulse to the coupling tolerance, and the fluid's momentum changes by exchange + transport",
         )
         .input("state", "coupled", "the coupled state")
         .output("solid_momentum", "vec3", "Σ m v over the simulated vertices [kg·m/s]")

@@ -67,22 +67,34 @@ struct UsdFile {
     last: Vec<Option<(i64, Vec<[f64; 3]>)>>,
 }
 
-/// `target` relative to the directory `base` when both are absolute or both relative (with
-/// `/` separators, as USD asset paths want), else `target` as given.
+/// `target` relative to the directory `base`, with `/` separators, as USD asset paths want
+/// (USD resolves them against the layer's directory). Both are made absolute against the
+/// working directory and normalized lexically (`.` dropped, `..` applied) first, so
+/// `./scene.usda` beside `fields/x.vdb` gives `./fields/x.vdb`.
 fn relative_path(base: &Path, target: &Path) -> String {
     use std::path::Component;
-    let (b, t): (Vec<Component>, Vec<Component>) =
-        (base.components().collect(), target.components().collect());
-    if base.is_absolute() != target.is_absolute() {
-        return target.display().to_string();
-    }
+    let absolute = |p: &Path| -> Vec<String> {
+        let p = if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            std::env::current_dir().unwrap_or_default().join(p)
+        };
+        let mut parts: Vec<String> = Vec::new();
+        for c in p.components() {
+            match c {
+                Component::CurDir | Component::RootDir | Component::Prefix(_) => {}
+                Component::ParentDir => {
+                    parts.pop();
+                }
+                Component::Normal(n) => parts.push(n.to_string_lossy().into_owned()),
+            }
+        }
+        parts
+    };
+    let (b, t) = (absolute(base), absolute(target));
     let common = b.iter().zip(&t).take_while(|(x, y)| x == y).count();
     let mut parts: Vec<String> = vec!["..".to_string(); b.len() - common];
-    parts.extend(
-        t[common..]
-            .iter()
-            .map(|c| c.as_os_str().to_string_lossy().into_owned()),
-    );
+    parts.extend(t[common..].iter().cloned());
     if parts.first().is_none_or(|p| p != "..") {
         parts.insert(0, ".".into());
     }
@@ -241,7 +253,6 @@ impl weft_graph::Compute for UsdOut {
             }
             let base = path.parent().unwrap_or(Path::new("."));
             let asset = relative_path(base, vdb);
-            let extent = extent.unwrap_or([[0.0; 3]; 2]);
             file.usd
                 .set_volume_file(*id, frame, &asset, extent)
                 .map_err(|err| fail(&path, err))?;
@@ -517,4 +528,39 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         |_| Ok(Kernel::from_fn(preview)),
     )?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::relative_path;
+    use std::path::Path;
+
+    #[test]
+    fn asset_paths_are_relative_to_the_layer() {
+        let cwd = std::env::current_dir().unwrap();
+        assert_eq!(
+            relative_path(Path::new("."), Path::new("fields/x.vdb")),
+            "./fields/x.vdb"
+        );
+        assert_eq!(
+            relative_path(Path::new("./out"), Path::new("out/f/x.vdb")),
+            "./f/x.vdb"
+        );
+        assert_eq!(
+            relative_path(Path::new("a/b"), Path::new("a/c/x.vdb")),
+            "../c/x.vdb"
+        );
+        // A `..` in the base is applied, not undone by another.
+        let up = relative_path(Path::new("../s"), Path::new("out/x.vdb"));
+        let want = format!(
+            "../{}/out/x.vdb",
+            cwd.file_name().unwrap().to_string_lossy()
+        );
+        assert_eq!(up, want);
+        // Absolute against relative: both resolved against the working directory.
+        assert_eq!(
+            relative_path(&cwd.join("r"), Path::new("r/x.vdb")),
+            "./x.vdb"
+        );
+    }
 }
