@@ -71,6 +71,8 @@ fn flag_wind_fields_read_back_in_openvdb() {
     let text = std::fs::read_to_string(graphs_dir().join("flag_wind.json")).unwrap();
     let mut doc: serde_json::Value = serde_json::from_str(&text).unwrap();
     doc["outputs"] = serde_json::json!({"fields": "fields.path", "state": "solve.state"});
+    doc["nodes"]["fields"]["params"]["grids"] =
+        "velocity,pressure,pressure_absolute,speed,solid_fraction".into();
     let mut g: Graph = graph(&doc.to_string());
     g.set_output_root(Some(dir.path().to_path_buf()));
     let mut files = Vec::new();
@@ -83,7 +85,17 @@ fn flag_wind_fields_read_back_in_openvdb() {
         let dom = &grid.domain;
         let [nx, ny, nz] = dom.cells;
         let mut samples = serde_json::Map::new();
-        for name in ["velocity", "pressure", "speed", "solid_fraction"] {
+        let rho = s.compiled.fluid.as_ref().unwrap().properties.density;
+        let gravity = s.compiled.system.gravity;
+        let gravity = [gravity.x, gravity.y, gravity.z];
+        let top = grid.hydrostatic_reference(gravity);
+        for name in [
+            "velocity",
+            "pressure",
+            "pressure_absolute",
+            "speed",
+            "solid_fraction",
+        ] {
             samples.insert(name.into(), serde_json::json!([]));
         }
         // Corners, the middle, and the cells round the flag (where the solid fraction is not 0).
@@ -130,7 +142,14 @@ fn flag_wind_fields_read_back_in_openvdb() {
                 &mut samples,
                 "pressure",
                 serde_json::json!(grid.pressure_at(centre)),
+            ); // Reduced pressure plus ρ g·(x − x_top): air under the domain's top.
+            let hydro: f64 = (0..3).map(|a| gravity[a] * (centre[a] - top[a])).sum();
+            add(
+                &mut samples,
+                "pressure_absolute",
+                serde_json::json!(grid.pressure_at(centre) + rho * hydro),
             );
+
             add(
                 &mut samples,
                 "solid_fraction",
@@ -145,6 +164,7 @@ fn flag_wind_fields_read_back_in_openvdb() {
             "grids": {
                 "velocity": {"class": "unknown", "type": "vec3s", "vector_type": "contravariant relative"},
                 "pressure": {"class": "unknown", "type": "float"},
+                "pressure_absolute": {"class": "unknown", "type": "float"},
                 "speed": {"class": "unknown", "type": "float"},
                 "solid_fraction": {"class": "fog volume", "type": "float"},
             },
