@@ -76,7 +76,11 @@ fn flag_wind_fields_read_back_in_openvdb() {
     let mut g: Graph = graph(&doc.to_string());
     g.set_output_root(Some(dir.path().to_path_buf()));
     let mut files = Vec::new();
-    for frame in [0, 3] {
+    // Frames 0 and 3 in float, frame 4 as half floats (2⁻¹¹ relative).
+    for (frame, half) in [(0, false), (3, false), (4, true)] {
+        if half {
+            g.set_param("fields", "precision", "half".into()).unwrap();
+        }
         let path = g.pull("fields", Context::new(frame)).unwrap();
         let path = path.get::<String>().unwrap().clone();
         let state = g.pull("state", Context::new(frame)).unwrap();
@@ -158,6 +162,7 @@ fn flag_wind_fields_read_back_in_openvdb() {
         }
         files.push(serde_json::json!({
             "path": path,
+            "half": half,
             "voxel_size": dom.dx,
             "origin": dom.cell_center([0, 0, 0]),
             "dims": dom.cells,

@@ -14,8 +14,11 @@ def fail(msg):
     sys.exit(1)
 
 
-def close(a, b, scale):
-    # f32 rounding of the written value, plus a floor for values near zero.
+def close(a, b, scale, half):
+    # f32 (or half) rounding of the written value, plus a floor for values near zero
+    # (half floats: their smallest normal, 6.1e-5, of the field's scale).
+    if half:
+        return abs(a - b) <= 2.0 ** -11 * abs(b) + 6.2e-5 * scale
     return abs(a - b) <= 2.0 ** -23 * abs(b) + 1e-7 * scale
 
 
@@ -37,6 +40,8 @@ def main(spec_path):
                 fail(f"{where}: class {g.gridClass!r}, expected {want['class']!r}")
             if g.valueTypeName != want["type"]:
                 fail(f"{where}: value type {g.valueTypeName!r}, expected {want['type']!r}")
+            if g.saveFloatAsHalf != f.get("half", False):
+                fail(f"{where}: saveFloatAsHalf {g.saveFloatAsHalf}")
             if "vector_type" in want and g.vectorType != want["vector_type"]:
                 fail(f"{where}: vector type {g.vectorType!r}")
             vs = g.transform.voxelSize()
@@ -64,7 +69,7 @@ def main(spec_path):
                 want_v = s["value"]
                 got_l = list(got) if isinstance(want_v, list) else [got]
                 want_l = want_v if isinstance(want_v, list) else [want_v]
-                if not all(close(a, b, scale) for a, b in zip(got_l, want_l)):
+                if not all(close(a, b, scale, f.get("half", False)) for a, b in zip(got_l, want_l)):
                     fail(f"{where}: voxel {ijk} holds {got}, expected {want_v}")
                 if not acc.isValueOn(ijk):
                     fail(f"{where}: voxel {ijk} is inactive")

@@ -112,6 +112,9 @@ pub struct DenseGrid {
     pub origin: [f64; 3],
     /// The values.
     pub values: Values,
+    /// Store the values as 16-bit half floats (OpenVDB's `_HalfFloat` grids: half the size,
+    /// 11 significant bits, magnitudes up to 65504).
+    pub half: bool,
 }
 
 /// How node values are stored.
@@ -162,6 +165,16 @@ pub enum VdbError {
     /// A value is NaN or infinite (in single precision).
     #[error("grid `{name}`: the value of voxel {voxel:?} is not finite")]
     NonFinite {
+        /// The grid.
+        name: String,
+        /// Index of the voxel.
+        voxel: [usize; 3],
+    },
+    /// A value too large for a half-float grid.
+    #[error(
+        "grid `{name}`: the value of voxel {voxel:?} exceeds half precision's 65504; write it as float"
+    )]
+    HalfRange {
         /// The grid.
         name: String,
         /// Index of the voxel.
@@ -392,12 +405,26 @@ fn check(grids: &[DenseGrid]) -> Result<(), VdbError> {
             Values::Float(v) => v.iter().position(|x| !x.is_finite()),
             Values::Vec3(v) => v.iter().position(|x| !x.iter().all(|c| c.is_finite())),
         };
+        let [nx, ny, _] = g.dims;
+        let voxel = |i: usize| [i % nx, (i / nx) % ny, i / (nx * ny)];
         if let Some(i) = bad {
-            let [nx, ny, _] = g.dims;
             return Err(VdbError::NonFinite {
                 name: g.name.clone(),
-                voxel: [i % nx, (i / nx) % ny, i / (nx * ny)],
+                voxel: voxel(i),
             });
+        }
+        if g.half {
+            let big = |x: f32| x.abs() > half::f16::MAX.to_f32();
+            let over = match &g.values {
+                Values::Float(v) => v.iter().position(|&x| big(x)),
+                Values::Vec3(v) => v.iter().position(|x| x.iter().any(|&c| big(c))),
+            };
+            if let Some(i) = over {
+                return Err(VdbError::HalfRange {
+                    name: g.name.clone(),
+                    voxel: voxel(i),
+                });
+            }
         }
     }
     Ok(())
@@ -409,6 +436,8 @@ trait Voxel: Copy {
     const TYPE: &'static str;
     const ZERO: Self;
     fn put(self, out: &mut Vec<u8>);
+    /// As half floats, rounded to nearest (OpenVDB's `HalfWriter`).
+    fn put_half(self, out: &mut Vec<u8>);
 }
 
 impl Voxel for f32 {
@@ -416,6 +445,9 @@ impl Voxel for f32 {
     const ZERO: Self = 0.0;
     fn put(self, out: &mut Vec<u8>) {
         out.extend_from_slice(&self.to_le_bytes());
+    }
+    fn put_half(self, out: &mut Vec<u8>) {
+        out.extend_from_slice(&half::f16::from_f32(self).to_le_bytes());
     }
 }
 
@@ -425,6 +457,11 @@ impl Voxel for [f32; 3] {
     fn put(self, out: &mut Vec<u8>) {
         for c in self {
             out.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    fn put_half(self, out: &mut Vec<u8>) {
+        for c in self {
+            out.extend_from_slice(&half::f16::from_f32(c).to_le_bytes());
         }
     }
 }
@@ -468,9 +505,12 @@ fn put_mask(out: &mut Vec<u8>, bits: usize, on: impl Iterator<Item = usize>) {
 }
 
 fn write_grid<T: Voxel>(out: &mut Vec<u8>, g: &DenseGrid, data: &[T], zip: &mut Zip) {
+    zip.half = g.half;
     // Descriptor: unique name, tree type, instance parent, then three offsets patched below.
     put_str(out, &g.name);
-    put_str(out, &format!("Tree_{}_5_4_3", T::TYPE));
+    // A half grid's descriptor names its type with OpenVDB's `_HalfFloat` suffix.
+    let suffix = if g.half { "_HalfFloat" } else { "" };
+    put_str(out, &format!("Tree_{}_5_4_3{suffix}", T::TYPE));
     put_str(out, "");
     let offsets_at = out.len();
     out.extend_from_slice(&[0u8; 24]);
@@ -496,7 +536,7 @@ fn write_grid<T: Voxel>(out: &mut Vec<u8>, g: &DenseGrid, data: &[T], zip: &mut 
         &((nx * ny * nz) as i64).to_le_bytes(),
     );
     put_meta(out, "is_local_space", "bool", &[0]);
-    put_meta(out, "is_saved_as_half_float", "bool", &[0]);
+    put_meta(out, "is_saved_as_half_float", "bool", &[g.half as u8]);
     put_meta_str(out, "name", &g.name);
     if is_vec {
         put_meta_str(out, "vector_type", g.vector_type.as_str());
@@ -590,6 +630,8 @@ fn leaf_mask(out: &mut Vec<u8>, o: [usize; 3], dims: [usize; 3]) {
 /// Node value writer: raw, or zlib with OpenVDB's framing; keeps its buffers across nodes.
 struct Zip {
     on: bool,
+    /// Node values as half floats (the root's background stays full size, as OpenVDB's).
+    half: bool,
     raw: Vec<u8>,
     packed: Vec<u8>,
     deflate: flate2::Compress,
@@ -599,6 +641,7 @@ impl Zip {
     fn new(c: Compression) -> Self {
         Zip {
             on: c == Compression::Zip,
+            half: false,
             raw: Vec::new(),
             packed: Vec::new(),
             deflate: flate2::Compress::new(flate2::Compression::fast(), true),
@@ -614,7 +657,11 @@ impl Zip {
     fn put<T: Voxel>(&mut self, out: &mut Vec<u8>, values: &[T]) {
         self.raw.clear();
         for &v in values {
-            v.put(&mut self.raw);
+            if self.half {
+                v.put_half(&mut self.raw);
+            } else {
+                v.put(&mut self.raw);
+            }
         }
         if !self.on {
             out.extend_from_slice(&self.raw);
@@ -723,7 +770,8 @@ mod tests {
                 .filter(|&n| words[n / 8] >> (n % 8) & 1 == 1)
                 .collect()
         }
-        fn values(&mut self, count: usize, width: usize, zip: bool) -> Vec<f32> {
+        fn values_as(&mut self, count: usize, width: usize, zip: bool, half: bool) -> Vec<f32> {
+            let size = if half { 2 } else { 4 };
             assert_eq!(self.take(1)[0], ALL_VALUES);
             let raw = if zip {
                 let n = self.i64();
@@ -731,7 +779,7 @@ mod tests {
                     self.take((-n) as usize).to_vec()
                 } else {
                     let mut d = flate2::Decompress::new(true);
-                    let mut v = Vec::with_capacity(count * width * 4);
+                    let mut v = Vec::with_capacity(count * width * size);
                     d.decompress_vec(
                         self.take(n as usize),
                         &mut v,
@@ -741,11 +789,14 @@ mod tests {
                     v
                 }
             } else {
-                self.take(count * width * 4).to_vec()
+                self.take(count * width * size).to_vec()
             };
-            assert_eq!(raw.len(), count * width * 4);
-            raw.chunks(4)
-                .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+            assert_eq!(raw.len(), count * width * size);
+            raw.chunks(size)
+                .map(|c| match c.len() {
+                    2 => half::f16::from_le_bytes(c.try_into().unwrap()).to_f32(),
+                    _ => f32::from_le_bytes(c.try_into().unwrap()),
+                })
                 .collect()
         }
     }
@@ -802,6 +853,7 @@ mod tests {
             let voxel = r.f64();
             r.take(8 * 14);
             let width = if tree.contains("vec3s") { 3 } else { 1 };
+            let half = tree.ends_with("_HalfFloat");
             assert_eq!(r.i32(), 1);
             assert!(r.values_bg(width));
             assert_eq!(r.u32(), 0, "no tiles");
@@ -810,12 +862,20 @@ mod tests {
                 let o2 = [r.i32() as i64, r.i32() as i64, r.i32() as i64];
                 let kids2 = r.mask(1 << 15);
                 assert!(r.mask(1 << 15).is_empty());
-                assert!(r.values(1 << 15, width, zip).iter().all(|&v| v == 0.0));
+                assert!(
+                    r.values_as(1 << 15, width, zip, half)
+                        .iter()
+                        .all(|&v| v == 0.0)
+                );
                 for n2 in kids2 {
                     let o1 = offset(o2, n2, 5, 128);
                     let kids1 = r.mask(1 << 12);
                     assert!(r.mask(1 << 12).is_empty());
-                    assert!(r.values(1 << 12, width, zip).iter().all(|&v| v == 0.0));
+                    assert!(
+                        r.values_as(1 << 12, width, zip, half)
+                            .iter()
+                            .all(|&v| v == 0.0)
+                    );
                     for n1 in kids1 {
                         leaf_origins.push((offset(o1, n1, 4, 8), r.mask(512)));
                     }
@@ -825,7 +885,7 @@ mod tests {
             let mut active = Vec::new();
             for (o, m) in leaf_origins {
                 assert_eq!(r.mask(512), m);
-                let v = r.values(512, width, zip);
+                let v = r.values_as(512, width, zip, half);
                 for n in m {
                     active.push((offset(o, n, 3, 1), v[n * width..(n + 1) * width].to_vec()));
                 }
@@ -888,6 +948,7 @@ mod tests {
                     voxel_size: 0.04,
                     origin: [-0.58, 0.52, -0.28],
                     values: Values::Float(s.clone()),
+                    half: false,
                 },
                 DenseGrid {
                     name: "velocity".into(),
@@ -897,6 +958,7 @@ mod tests {
                     voxel_size: 0.04,
                     origin: [-0.58, 0.52, -0.28],
                     values: Values::Vec3(v),
+                    half: false,
                 },
             ];
             let bytes = to_bytes(&grids, compression).unwrap();
@@ -953,6 +1015,7 @@ mod tests {
             voxel_size: 1.0 / 64.0,
             origin: [0.0; 3],
             values: Values::Float(vec![1.5; 64 * 64 * 64]),
+            half: false,
         };
         let raw = to_bytes(std::slice::from_ref(&g), Compression::None).unwrap();
         let zip = to_bytes(std::slice::from_ref(&g), Compression::Zip).unwrap();
@@ -973,6 +1036,7 @@ mod tests {
             voxel_size: 0.1,
             origin: [0.0; 3],
             values: Values::Float(vec![0.0; 8]),
+            half: false,
         };
         let with = |f: &dyn Fn(&mut DenseGrid)| {
             let mut g = good.clone();
@@ -1003,6 +1067,7 @@ mod tests {
             voxel_size: 0.5,
             origin: [1.0, 2.0, 3.0],
             values,
+            half: false,
         };
         let bytes = to_bytes(
             &[
@@ -1033,6 +1098,54 @@ mod tests {
         let first = info_offsets(&bytes);
         looping[first.0..first.0 + 8].copy_from_slice(&(first.1 as i64).to_le_bytes());
         assert!(describe(&looping).is_err());
+    }
+
+    #[test]
+    fn half_grids_store_half_floats_and_refuse_what_half_cannot_hold() {
+        let dims = [9, 2, 3];
+        let s = field(dims);
+        let g = DenseGrid {
+            name: "speed".into(),
+            class: GridClass::Unknown,
+            vector_type: VectorType::Invariant,
+            dims,
+            voxel_size: 0.1,
+            origin: [0.0; 3],
+            values: Values::Float(s.clone()),
+            half: true,
+        };
+        for compression in [Compression::None, Compression::Zip] {
+            let bytes = to_bytes(std::slice::from_ref(&g), compression).unwrap();
+            let back = read(&bytes);
+            assert_eq!(back[0].tree, "Tree_float_5_4_3_HalfFloat");
+            assert_eq!(back[0].active.len(), 54);
+            for (ijk, v) in &back[0].active {
+                let [i, j, k] = ijk.map(|c| c as usize);
+                let want = half::f16::from_f32(s[i + 9 * (j + 2 * k)]).to_f32();
+                assert_eq!(v, &vec![want], "{ijk:?}");
+            }
+        }
+        let raw = to_bytes(std::slice::from_ref(&g), Compression::None).unwrap();
+        let full = DenseGrid {
+            half: false,
+            ..g.clone()
+        };
+        let raw_full = to_bytes(&[full], Compression::None).unwrap();
+        // Two leaves (9 voxels along x) and two internal nodes' values at 2 bytes instead
+        // of 4, less the type name's 10-byte "_HalfFloat".
+        assert_eq!(
+            raw_full.len() - raw.len(),
+            2 * (2 * 512 + 4096 + 32768) - 10
+        );
+        let mut big = g;
+        if let Values::Float(v) = &mut big.values {
+            v[10] = 70000.0;
+        }
+        let e = to_bytes(&[big], Compression::Zip).unwrap_err().to_string();
+        assert!(
+            e.contains("grid `speed`") && e.contains("[1, 1, 0]") && e.contains("65504"),
+            "{e}"
+        );
     }
 
     /// Where the first grid's end offset is stored, and where its descriptor starts.

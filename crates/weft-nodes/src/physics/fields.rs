@@ -266,6 +266,7 @@ fn output_vdb(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     });
     let dom = &g.domain;
     let origin = dom.cell_center([0, 0, 0]);
+    let half = params.str("precision")? == "half";
     let grid = |name: &str, class, values| DenseGrid {
         name: name.to_string(),
         class,
@@ -274,6 +275,7 @@ fn output_vdb(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
         voxel_size: dom.dx,
         origin,
         values,
+        half,
     };
     let mut grids = Vec::new();
     for name in wanted {
@@ -379,7 +381,8 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         .param(ParamSpec::string("directory", "out/fields").doc("output directory (under --out when given, else the working directory)"))
         .param(ParamSpec::string("prefix", "fields").doc("file name prefix"))
         .param(ParamSpec::string("grids", "velocity,pressure,speed,solid_fraction").doc("comma-separated grids to write: velocity (vec3s, the faces averaged to cell centres, vector type contravariant relative), pressure (reduced, Pa), pressure_absolute (with the hydrostatic part, Pa), speed (|velocity|, m/s), solid_fraction (fog volume, 0 to 1)"))
-        .param(ParamSpec::choice("compression", &["zip", "none"], "zip").doc("zip: each node's values zlib-compressed (OpenVDB's COMPRESS_ZIP); none: raw")),
+        .param(ParamSpec::choice("compression", &["zip", "none"], "zip").doc("zip: each node's values zlib-compressed (OpenVDB's COMPRESS_ZIP); none: raw"))
+        .param(ParamSpec::choice("precision", &["float", "half"], "float").doc("float: 32-bit values; half: 16-bit (OpenVDB's _HalfFloat grids: about half the file, 3 significant digits, magnitudes up to 65504 — a larger value is an error naming the grid)")),
         |_| Ok(Kernel::from_fn(output_vdb)),
     )
 }
