@@ -95,6 +95,14 @@ impl MacGrid {
         std::array::from_fn(|a| self.domain.origin[a] + if g[a] < 0.0 { size[a] } else { 0.0 })
     }
 
+    /// The hydrostatic pressure ρ g·(x − x_top) at `x` [Pa] for density `rho` and gravity `g`,
+    /// x_top from [`MacGrid::hydrostatic_reference`]: what the reduced pressure the grid
+    /// solves for leaves out.
+    pub fn hydrostatic_pressure(&self, x: [f64; 3], g: [f64; 3], rho: f64) -> f64 {
+        let top = self.hydrostatic_reference(g);
+        rho * (0..3).map(|a| g[a] * (x[a] - top[a])).sum::<f64>()
+    }
+
     /// The fluid's volume [m³]: Σ over cells of (1 − solid fraction) Δx³.
     pub fn fluid_volume(&self) -> f64 {
         let mut v = 0.0;

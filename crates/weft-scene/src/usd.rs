@@ -563,6 +563,24 @@ fn list<T>(
     f.write_str("]")
 }
 
+/// `INDENT DECL.timeSamples = { frame: value, … }`, one sample a line, each value written by
+/// `item`.
+fn time_samples<T>(
+    f: &mut fmt::Formatter<'_>,
+    indent: &str,
+    decl: &str,
+    samples: &BTreeMap<i64, T>,
+    mut item: impl FnMut(&mut fmt::Formatter<'_>, &T) -> fmt::Result,
+) -> fmt::Result {
+    writeln!(f, "{indent}{decl}.timeSamples = {{")?;
+    for (frame, value) in samples {
+        write!(f, "{indent}    {frame}: ")?;
+        item(f, value)?;
+        writeln!(f, ",")?;
+    }
+    writeln!(f, "{indent}}}")
+}
+
 fn point(f: &mut fmt::Formatter<'_>, p: &[f32; 3]) -> fmt::Result {
     // `{}` on f32 is the shortest text that reads back to the same f32.
     write!(f, "({}, {}, {})", p[0], p[1], p[2])
@@ -633,29 +651,17 @@ impl Prim {
             points_list(f, &self.rest)?;
             writeln!(f)?;
         } else {
-            writeln!(f, "{I}float3[] extent.timeSamples = {{")?;
-            for (frame, points) in &self.samples {
-                write!(f, "{I}    {frame}: ")?;
-                extent_list(f, points, pad)?;
-                writeln!(f, ",")?;
-            }
-            writeln!(f, "{I}}}")?;
-            writeln!(f, "{I}point3f[] points.timeSamples = {{")?;
-            for (frame, points) in &self.samples {
-                write!(f, "{I}    {frame}: ")?;
-                points_list(f, points)?;
-                writeln!(f, ",")?;
-            }
-            writeln!(f, "{I}}}")?;
+            time_samples(f, I, "float3[] extent", &self.samples, |f, p| {
+                extent_list(f, p, pad)
+            })?;
+            time_samples(f, I, "point3f[] points", &self.samples, |f, p| {
+                points_list(f, p)
+            })?;
         }
         if !self.velocities.is_empty() {
-            writeln!(f, "{I}vector3f[] velocities.timeSamples = {{")?;
-            for (frame, v) in &self.velocities {
-                write!(f, "{I}    {frame}: ")?;
-                points_list(f, v)?;
-                writeln!(f, ",")?;
-            }
-            writeln!(f, "{I}}}")?;
+            time_samples(f, I, "vector3f[] velocities", &self.velocities, |f, v| {
+                points_list(f, v)
+            })?;
         }
         writeln!(f, "    }}")
     }
@@ -669,17 +675,12 @@ impl Prim {
         const I: &str = "        ";
         writeln!(f, "    def Volume \"{}\"", self.name)?;
         writeln!(f, "    {{")?;
-        if files.values().any(|(_, e)| e.is_some()) {
-            writeln!(f, "{I}float3[] extent.timeSamples = {{")?;
-            for (frame, e) in files
-                .iter()
-                .filter_map(|(k, (_, e))| Some((k, e.as_ref()?)))
-            {
-                write!(f, "{I}    {frame}: ")?;
-                list(f, e, point)?;
-                writeln!(f, ",")?;
-            }
-            writeln!(f, "{I}}}")?;
+        let extents: BTreeMap<i64, [[f32; 3]; 2]> = files
+            .iter()
+            .filter_map(|(k, (_, e))| Some((*k, (*e)?)))
+            .collect();
+        if !extents.is_empty() {
+            time_samples(f, I, "float3[] extent", &extents, |f, e| list(f, e, point))?;
         }
         for field in fields {
             writeln!(
@@ -694,11 +695,13 @@ impl Prim {
             writeln!(f, "{I}{{")?;
             writeln!(f, "{I}    token fieldDataType = \"{}\"", field.data_type)?;
             writeln!(f, "{I}    token fieldName = \"{}\"", field.name)?;
-            writeln!(f, "{I}    asset filePath.timeSamples = {{")?;
-            for (frame, (path, _)) in files {
-                writeln!(f, "{I}        {frame}: @{path}@,")?;
-            }
-            writeln!(f, "{I}    }}")?;
+            time_samples(
+                f,
+                &format!("{I}    "),
+                "asset filePath",
+                files,
+                |f, (p, _)| write!(f, "@{p}@"),
+            )?;
             if let Some(role) = field.role {
                 writeln!(f, "{I}    token vectorDataRoleHint = \"{role}\"")?;
             }

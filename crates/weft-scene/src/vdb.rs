@@ -24,8 +24,6 @@
 //! All integers are little-endian, as OpenVDB writes them on the platforms it supports.
 //! Output is deterministic: the UUID is derived from the file's content.
 
-use std::io::{self, Write};
-
 /// The file format version written (OpenVDB's `OPENVDB_FILE_VERSION_MULTIPASS_IO`).
 pub const FILE_VERSION: u32 = 224;
 const MAGIC: i64 = 0x5644_4220;
@@ -180,9 +178,6 @@ pub enum VdbError {
         /// Index of the voxel.
         voxel: [usize; 3],
     },
-    /// Writing failed.
-    #[error(transparent)]
-    Io(#[from] io::Error),
     /// A file being described is not a VDB file this module understands.
     #[error("not a readable VDB file: {0}")]
     Format(String),
@@ -331,16 +326,6 @@ impl<'a> Cursor<'a> {
         }
         Ok(())
     }
-}
-
-/// Writes `grids` as one `.vdb` file to `w`.
-pub fn write(
-    w: &mut impl Write,
-    grids: &[DenseGrid],
-    compression: Compression,
-) -> Result<(), VdbError> {
-    w.write_all(&to_bytes(grids, compression)?)?;
-    Ok(())
 }
 
 /// The `.vdb` file holding `grids`, in memory.

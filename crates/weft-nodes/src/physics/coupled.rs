@@ -585,11 +585,15 @@ pub(super) fn update(_: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeE
         _ => [0.0; 3],
     };
     // The rest of the fluid's momentum change: advection (semi-Lagrangian, not
-    // conservative) and the solids' fractions moving over the faces.
-    let transport = fluid.as_ref().map_or([0.0; 3], |u| {
-        let now = u.momentum(rho);
-        std::array::from_fn(|k| now[k] - step.fluid_momentum[k] - exchange[k])
-    });
+    // conservative) and the solids' fractions moving over the faces. Only the converged
+    // iterate becomes the frame's state, so only it needs the sum over the faces.
+    let transport = match &fluid {
+        Some(u) if converged => {
+            let now = u.momentum(rho);
+            std::array::from_fn(|k| now[k] - step.fluid_momentum[k] - exchange[k])
+        }
+        _ => [0.0; 3],
+    };
     let next = CoupledState {
         compiled: step.compiled.clone(),
         sim: SimState {

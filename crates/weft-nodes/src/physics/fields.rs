@@ -9,6 +9,7 @@
 //! gravity: the gauge pressure under a free surface at the domain's top.
 
 use super::coupled::{CoupledState, get, settings};
+use super::output::fail;
 use weft_fluid::MacGrid;
 use weft_graph::{EvalCx, Kernel, NodeError, NodeSpec, ParamSpec, Registry, RegistryError};
 use weft_scene::vdb::{self, DenseGrid, GridClass, Values, VectorType};
@@ -22,14 +23,11 @@ fn fluid_of<'a>(s: &'a CoupledState, what: &str) -> Result<&'a MacGrid, NodeErro
     })
 }
 
-/// Refuses a point outside the fluid's box (a small margin for rounding).
+/// Refuses a point outside the fluid's box.
 fn inside(g: &MacGrid, p: [f64; 3], what: &str) -> Result<(), NodeError> {
     let dom = &g.domain;
-    let size = dom.size();
-    let eps = 1e-9 * dom.dx;
-    let out =
-        (0..3).any(|a| !(p[a] >= dom.origin[a] - eps && p[a] <= dom.origin[a] + size[a] + eps));
-    if out {
+    if !dom.contains(p) {
+        let size = dom.size();
         let hi: Vec<f64> = (0..3).map(|a| dom.origin[a] + size[a]).collect();
         return Err(NodeError::Failed(format!(
             "{what} {p:?} m is outside the fluid domain {:?} .. {hi:?} m",
@@ -48,19 +46,15 @@ struct Reading {
     vorticity: [f64; 3],
 }
 
-fn read(s: &CoupledState, g: &MacGrid, p: [f64; 3]) -> Reading {
-    let set = settings(&s.compiled);
-    let top = g.hydrostatic_reference(set.gravity);
-    let c = g.domain.cell_center(g.cell_holding(p));
-    let hydro: f64 = (0..3)
-        .map(|a| set.gravity[a] * (c[a] - top[a]))
-        .sum::<f64>()
-        * set.fluid.density;
+/// Reads the grid at `p`; `gravity` and `rho` (the state's) give the hydrostatic part, taken at
+/// the centre of the cell whose pressure is read.
+fn read(g: &MacGrid, p: [f64; 3], gravity: [f64; 3], rho: f64) -> Reading {
     let pressure = g.pressure_at(p);
+    let centre = g.domain.cell_center(g.cell_holding(p));
     Reading {
         velocity: g.velocity_at(p),
         pressure,
-        pressure_absolute: pressure + hydro,
+        pressure_absolute: pressure + g.hydrostatic_pressure(centre, gravity, rho),
         solid_fraction: g.solid_fraction_at(p),
         vorticity: g.vorticity_at(p),
     }
@@ -78,7 +72,8 @@ fn probe(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
         Some(g) => {
             inside(g, p, "param 'point':")?;
             let max = g.vel.iter().flatten().fold(0.0f64, |m, u| m.max(u.abs()));
-            (read(s, g, p), max)
+            let set = settings(&s.compiled);
+            (read(g, p, set.gravity, set.fluid.density), max)
         }
         None => (
             Reading {
@@ -122,6 +117,7 @@ fn line_probe(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     inside(g, a, "param 'start':")?;
     inside(g, b, "param 'end':")?;
     let length = norm([0, 1, 2].map(|k| b[k] - a[k]));
+    let set = settings(&s.compiled);
     let mut values = Vec::with_capacity(n);
     let mut distance = Vec::with_capacity(n);
     for k in 0..n {
@@ -131,7 +127,7 @@ fn line_probe(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
             0.0
         };
         let p = [0, 1, 2].map(|c| a[c] + t * (b[c] - a[c]));
-        let r = read(s, g, p);
+        let r = read(g, p, set.gravity, set.fluid.density);
         values.push(match quantity.as_str() {
             "speed" => norm(r.velocity),
             "velocity_x" => r.velocity[0],
@@ -235,76 +231,62 @@ fn output_vdb(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     }
     let g = fluid_of(s, "output.vdb writes the fluid's fields")?;
     let cells = g.domain.cell_count() as u64;
-    // f64 fields while they are gathered, f32 grids, and the file (at most raw size).
+    // The f32 grids and the file (at most their raw size), 4 bytes a component each, and a
+    // margin for the nodes' masks and the compressor's buffers.
+    let components: u64 = wanted
+        .iter()
+        .map(|&w| if w == "velocity" { 3 } else { 1 })
+        .sum();
     weft_graph::memory::check_within(
-        weft_graph::memory::product(&[cells, 8 * 4 + 4 * 4 * 2 + 64]),
+        weft_graph::memory::product(&[cells, 8 * components + 64]),
         cx.memory_budget(),
         || format!("the fields of a {:?}-cell grid", g.domain.cells),
         "use larger cells or fewer grids",
     )?;
     let set = settings(&s.compiled);
-    let rho = set.fluid.density;
-    let top = g.hydrostatic_reference(set.gravity);
-    let n = g.domain.cell_count();
-    let (mut vel, mut speed, mut pressure, mut absolute, mut solid) = (
-        Vec::with_capacity(n),
-        Vec::with_capacity(n),
-        Vec::with_capacity(n),
-        Vec::with_capacity(n),
-        Vec::with_capacity(n),
-    );
-    g.for_each_cell(|idx, c| {
-        let u = g.cell_velocity(c);
-        vel.push(u.map(|x| x as f32));
-        speed.push(norm(u) as f32);
-        let p = g.pressure[idx];
-        pressure.push(p as f32);
-        let x = g.domain.cell_center(c);
-        let hydro: f64 = (0..3).map(|a| set.gravity[a] * (x[a] - top[a])).sum();
-        absolute.push((p + rho * hydro) as f32);
-        solid.push(g.cell_solid_fraction(c) as f32);
-    });
     let dom = &g.domain;
-    let origin = dom.cell_center([0, 0, 0]);
-    let half = params.str("precision")? == "half";
-    let grid = |name: &str, class, values| DenseGrid {
-        name: name.to_string(),
-        class,
-        vector_type: VectorType::ContravariantRelative,
-        dims: dom.cells,
-        voxel_size: dom.dx,
-        origin,
-        values,
-        half,
+    let n = dom.cell_count();
+    // One scalar per cell, x fastest (the grid's cell order, which the VDB writer takes).
+    let scalars = |f: &dyn Fn(usize, [usize; 3]) -> f64| {
+        let mut v = Vec::with_capacity(n);
+        g.for_each_cell(|i, c| v.push(f(i, c) as f32));
+        Values::Float(v)
     };
+    let half = params.str("precision")? == "half";
     let mut grids = Vec::new();
     for name in wanted {
-        grids.push(match name {
-            "velocity" => grid(
-                name,
+        let (class, values) = match name {
+            "velocity" => {
+                let mut v = Vec::with_capacity(n);
+                g.for_each_cell(|_, c| v.push(g.cell_velocity(c).map(|x| x as f32)));
+                (GridClass::Unknown, Values::Vec3(v))
+            }
+            "speed" => (
                 GridClass::Unknown,
-                Values::Vec3(std::mem::take(&mut vel)),
+                scalars(&|_, c| norm(g.cell_velocity(c))),
             ),
-            "speed" => grid(
-                name,
+            "pressure" => (GridClass::Unknown, scalars(&|i, _| g.pressure[i])),
+            "pressure_absolute" => (
                 GridClass::Unknown,
-                Values::Float(std::mem::take(&mut speed)),
+                scalars(&|i, c| {
+                    let x = dom.cell_center(c);
+                    g.pressure[i] + g.hydrostatic_pressure(x, set.gravity, set.fluid.density)
+                }),
             ),
-            "pressure" => grid(
-                name,
-                GridClass::Unknown,
-                Values::Float(std::mem::take(&mut pressure)),
-            ),
-            "pressure_absolute" => grid(
-                name,
-                GridClass::Unknown,
-                Values::Float(std::mem::take(&mut absolute)),
-            ),
-            _ => grid(
-                name,
+            _ => (
                 GridClass::FogVolume,
-                Values::Float(std::mem::take(&mut solid)),
+                scalars(&|_, c| g.cell_solid_fraction(c)),
             ),
+        };
+        grids.push(DenseGrid {
+            name: name.to_string(),
+            class,
+            vector_type: VectorType::ContravariantRelative,
+            dims: dom.cells,
+            voxel_size: dom.dx,
+            origin: dom.cell_center([0, 0, 0]),
+            values,
+            half,
         });
     }
     let compression = match params.str("compression")? {
@@ -314,10 +296,8 @@ fn output_vdb(cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
     let path = cx
         .output_path("directory")?
         .join(format!("{prefix}.{:04}.vdb", cx.frame()));
-    let bytes = vdb::to_bytes(&grids, compression)
-        .map_err(|e| NodeError::Failed(format!("cannot write {}: {e}", path.display())))?;
-    weft_graph::atomic_write(&path, &bytes)
-        .map_err(|e| NodeError::Failed(format!("cannot write {}: {e}", path.display())))?;
+    let bytes = vdb::to_bytes(&grids, compression).map_err(|e| fail(&path, e))?;
+    weft_graph::atomic_write(&path, &bytes).map_err(|e| fail(&path, e))?;
     cx.set("path", path.display().to_string());
     Ok(())
 }

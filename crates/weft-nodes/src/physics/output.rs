@@ -12,7 +12,7 @@ use weft_scene::{
     write_obj_mesh,
 };
 
-fn fail(path: &Path, e: impl std::fmt::Display) -> NodeError {
+pub(super) fn fail(path: &Path, e: impl std::fmt::Display) -> NodeError {
     NodeError::Failed(format!("cannot write {}: {e}", path.display()))
 }
 
@@ -62,8 +62,8 @@ struct UsdFile {
     names: Vec<String>,
     prims: Vec<weft_scene::usd::PrimId>,
     volume: Option<(weft_scene::usd::PrimId, Vec<String>)>,
-    /// Per prim, the last frame written and its positions (for the velocities of elements the
-    /// solver does not move).
+    /// Per prim without the solver's velocities (a collider), the last frame written and its
+    /// positions, from which its velocity over the next frame follows.
     last: Vec<Option<(i64, Vec<[f64; 3]>)>>,
 }
 
@@ -152,6 +152,8 @@ impl weft_graph::Compute for UsdOut {
             })?)),
             None => None,
         };
+        // This frame's file, read once: its grids (for a new volume) and its extent.
+        let described = fields.as_deref().map(volume_fields).transpose()?;
         let mut upstream = cx.input_structure_hash("scene")?;
         if fields.is_some() {
             upstream ^= cx.input_structure_hash("fields")?.rotate_left(1);
@@ -179,18 +181,17 @@ impl weft_graph::Compute for UsdOut {
                 .map_err(|err| fail(&path, err))?;
                 prims.push(id);
             }
-            let volume = match &fields {
-                Some(file) => {
-                    let (f, _) = volume_fields(file)?;
+            let volume = match (&fields, &described) {
+                (Some(file), Some((f, _))) => {
                     let stem = file
                         .file_name()
                         .and_then(|n| n.to_str())
                         .and_then(|n| n.split('.').next())
                         .unwrap_or("fields");
-                    let id = usd.add_volume(stem, &f).map_err(|e| fail(&path, e))?;
-                    Some((id, f.into_iter().map(|f| f.name).collect()))
+                    let id = usd.add_volume(stem, f).map_err(|e| fail(&path, e))?;
+                    Some((id, f.iter().map(|f| f.name.clone()).collect()))
                 }
-                None => None,
+                _ => None,
             };
             let last = vec![None; prims.len()];
             self.scene = Some(UsdFile {
@@ -226,25 +227,31 @@ impl weft_graph::Compute for UsdOut {
             // other kinematic elements move by their animation: they get their mean velocity
             // over the frame that ends here, (x_f − x_{f−1})·fps (zero at the first frame
             // written), which is what motion blur over that frame needs.
-            let v: Vec<[f64; 3]> = match e.vec3_channel("velocity") {
-                Some(v) if v.len() == x.len() => v.to_vec(),
-                _ => match last {
-                    Some((f, prev)) if *f == frame - 1 && prev.len() == x.len() => x
-                        .iter()
-                        .zip(prev.iter())
-                        .map(|(a, b)| std::array::from_fn(|k| (a[k] - b[k]) * fps))
-                        .collect(),
-                    _ => vec![[0.0; 3]; x.len()],
-                },
+            // Only kinematic elements keep their last positions.
+            let derived: Vec<[f64; 3]>;
+            let v: &[[f64; 3]] = match e.vec3_channel("velocity") {
+                Some(v) if v.len() == x.len() => v,
+                _ => {
+                    derived = match last {
+                        Some((f, prev)) if *f == frame - 1 && prev.len() == x.len() => x
+                            .iter()
+                            .zip(prev.iter())
+                            .map(|(a, b)| std::array::from_fn(|k| (a[k] - b[k]) * fps))
+                            .collect(),
+                        _ => vec![[0.0; 3]; x.len()],
+                    };
+                    *last = Some((frame, x.to_vec()));
+                    &derived
+                }
             };
             file.usd
-                .set_velocities(id, frame, &v)
+                .set_velocities(id, frame, v)
                 .map_err(|err| fail(&path, err))?;
-            *last = Some((frame, x.to_vec()));
         }
-        if let (Some(vdb), Some((id, names))) = (&fields, &file.volume) {
-            let (f, extent) = volume_fields(vdb)?;
-            let now: Vec<String> = f.into_iter().map(|f| f.name).collect();
+        if let (Some(vdb), Some((f, extent)), Some((id, names))) =
+            (&fields, &described, &file.volume)
+        {
+            let now: Vec<String> = f.iter().map(|f| f.name.clone()).collect();
             if &now != names {
                 return Err(NodeError::Failed(format!(
                     "input 'fields': {} holds grids {now:?}, earlier frames {names:?}; a volume keeps its fields",
@@ -254,7 +261,7 @@ impl weft_graph::Compute for UsdOut {
             let base = path.parent().unwrap_or(Path::new("."));
             let asset = relative_path(base, vdb);
             file.usd
-                .set_volume_file(*id, frame, &asset, extent)
+                .set_volume_file(*id, frame, &asset, *extent)
                 .map_err(|err| fail(&path, err))?;
         }
         weft_graph::atomic_write_with(&path, |w| file.usd.write(&mut &mut *w))
