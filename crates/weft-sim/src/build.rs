@@ -426,6 +426,7 @@ pub fn compile_within(
         ("vertices", n),
     ]);
     let base_sliders = b.system.sliders.len();
+    b.system.layout = b.x.clone();
     Ok(Compiled {
         state: State { x: b.x, v },
         system: b.system,

@@ -21,6 +21,7 @@
 
 mod contacts;
 mod correction;
+mod order;
 mod rigid;
 mod sliding;
 mod solve;
@@ -31,7 +32,6 @@ use crate::system::{SolidSystem, State, SystemError};
 pub use contacts::{CONTACT_VERTICES, Contact, ContactSet, ContactStats};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::SupernodalThreshold;
-use faer::sparse::linalg::amd;
 use faer::sparse::linalg::cholesky::{
     CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
     factorize_symbolic_cholesky,
@@ -92,6 +92,114 @@ const SHIFT_TRIES: usize = 4;
 enum Mode {
     Dynamic { h: f64 },
     Static,
+}
+
+/// Factors cheaper than this keep minimum degree without trying nested dissection: there the
+/// flop count does not predict the time (dissection's leaves make many small supernodes),
+/// and hair, whose chains minimum degree orders without fill, stays as it was. Measured on
+/// the hanging cloth, time per factorization with dissection against minimum degree: 32²
+/// vertices (9.4e7 flops) +10 %, 40² +18 %, 48² (4.3e8) −3 %, 64² (1.5e9) −22 %, 128²
+/// −28 %, 256² −61 %.
+const DISSECTION_MIN_FLOPS: f64 = 5e8;
+
+/// Nested dissection replaces minimum degree only with at most this fraction of its flops.
+const DISSECTION_GAIN: f64 = 0.8;
+
+/// A fill-reducing ordering applied: the permuted lower triangle's pattern and its symbolic
+/// Cholesky factorization, and what a numeric factorization then costs.
+struct Analysis {
+    /// DOF `fwd[i]` is unknown i of the factor.
+    fwd: Vec<usize>,
+    lower_ptr: Vec<usize>,
+    lower_row: Vec<usize>,
+    lower_src: Vec<usize>,
+    symbolic: SymbolicCholesky<usize>,
+    /// Floating-point operations of one numeric factorization.
+    flops: f64,
+}
+
+impl Analysis {
+    /// The analysis of the pattern (`col_ptr`, `row_idx`: both triangles, 3×3 blocks) with
+    /// its vertices eliminated in the order `order` (`order[i]`: the vertex eliminated i-th).
+    fn new(order: &[usize], col_ptr: &[usize], row_idx: &[usize]) -> Result<Self, StepError> {
+        let dofs = 3 * order.len();
+        let fwd: Vec<usize> = order
+            .iter()
+            .flat_map(|&v| [3 * v, 3 * v + 1, 3 * v + 2])
+            .collect();
+        let mut inv = vec![0usize; dofs];
+        for (i, &d) in fwd.iter().enumerate() {
+            inv[d] = i;
+        }
+        // The lower triangle of the permuted matrix P A Pᵀ, (P A Pᵀ)ᵢⱼ = A(fwd i, fwd j), as a
+        // pattern of its own with, per entry, where its value sits in `values`: each
+        // factorization gathers it in one pass (faer permuting A itself at every
+        // factorization was 10 % of the hanging cloth's time).
+        let (mut lower_ptr, mut lower_row, mut lower_src) = (
+            Vec::with_capacity(dofs + 1),
+            Vec::with_capacity(row_idx.len() / 2 + dofs),
+            Vec::with_capacity(row_idx.len() / 2 + dofs),
+        );
+        lower_ptr.push(0);
+        let mut column: Vec<(usize, usize)> = Vec::new();
+        for (j, &oc) in fwd.iter().enumerate() {
+            column.clear();
+            for k in col_ptr[oc]..col_ptr[oc + 1] {
+                let r = inv[row_idx[k]];
+                if r >= j {
+                    column.push((r, k));
+                }
+            }
+            column.sort_unstable();
+            for &(r, k) in &column {
+                lower_row.push(r);
+                lower_src.push(k);
+            }
+            lower_ptr.push(lower_row.len());
+        }
+        // faer's symbolic analysis reads the upper triangle whatever the side when given no
+        // ordering (the numeric factorization then takes the lower one): its transpose.
+        let mut upper_ptr = vec![0usize; dofs + 1];
+        for &r in &lower_row {
+            upper_ptr[r + 1] += 1;
+        }
+        for j in 0..dofs {
+            upper_ptr[j + 1] += upper_ptr[j];
+        }
+        let mut upper_row = vec![0usize; lower_row.len()];
+        let mut next = upper_ptr.clone();
+        for c in 0..dofs {
+            for &r in &lower_row[lower_ptr[c]..lower_ptr[c + 1]] {
+                upper_row[next[r]] = c;
+                next[r] += 1;
+            }
+        }
+        let sym = SymbolicSparseColMatRef::new_checked(dofs, dofs, &upper_ptr, None, &upper_row);
+        // Checked once here: `factor_once` builds its view of the lower pattern unchecked.
+        SymbolicSparseColMatRef::new_checked(dofs, dofs, &lower_ptr, None, &lower_row);
+        let symbolic = factorize_symbolic_cholesky(
+            sym,
+            Side::Upper,
+            SymmetricOrdering::Identity,
+            // Supernodal always: it takes the lower triangle as given (the simplicial one
+            // wants the upper and would transpose it each time), and on the hanging cloth
+            // the simplicial factorization was measured 4.6× slower.
+            CholeskySymbolicParams {
+                supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
+                ..Default::default()
+            },
+        )
+        .map_err(|e| StepError::Factorization(format!("{e:?}")))?;
+        let flops = order::supernodal_flops(symbolic.raw());
+        Ok(Analysis {
+            fwd,
+            lower_ptr,
+            lower_row,
+            lower_src,
+            symbolic,
+            flops,
+        })
+    }
 }
 
 /// A stepper for one system: owns the sparsity pattern, the symbolic factorization and every
@@ -253,6 +361,7 @@ impl Integrator {
                 n_free += 1;
             }
         }
+        let n_vertices = n_free;
         // Rigid groups: two nodes each after the free vertices (`rigid.rs`).
         let mut groups = rigid::Groups::new(sys, &mut free_of, n_free);
         n_free += 2 * sys.rigid.len();
@@ -347,94 +456,36 @@ impl Integrator {
             .collect();
         // Fill-reducing ordering on the vertex graph (a third of the size, a ninth of the
         // nonzeros of the DOF graph), expanded to keep each vertex's three DOFs together: the
-        // factor's supernodes then align with the 3×3 blocks.
-        let (mut vperm, mut vinv) = (vec![0usize; n_free], vec![0usize; n_free]);
-        {
-            let mut vptr = Vec::with_capacity(n_free + 1);
-            let mut vidx = Vec::new();
-            vptr.push(0);
-            for l in &nbrs {
-                vidx.extend(l.iter().map(|&i| i as usize));
-                vptr.push(vidx.len());
-            }
-            let vsym = SymbolicSparseColMatRef::new_checked(n_free, n_free, &vptr, None, &vidx);
-            let mut mem = MemBuffer::new(amd::order_scratch::<usize>(n_free, vidx.len()));
-            amd::order(
-                &mut vperm,
-                &mut vinv,
-                vsym,
-                amd::Control::default(),
-                MemStack::new(&mut mem),
-            )
-            .map_err(|e| StepError::Factorization(format!("{e:?}")))?;
-        }
-        let fwd: Vec<usize> = vperm
-            .iter()
-            .flat_map(|&v| [3 * v, 3 * v + 1, 3 * v + 2])
-            .collect();
-        let inv: Vec<usize> = vinv
-            .iter()
-            .flat_map(|&v| [3 * v, 3 * v + 1, 3 * v + 2])
-            .collect();
-        // The lower triangle of the permuted matrix P A Pᵀ, (P A Pᵀ)ᵢⱼ = A(fwd i, fwd j), as a
-        // pattern of its own with, per entry, where its value sits in `values`: each
-        // factorization gathers it in one pass (faer permuting A itself at every
-        // factorization was 10 % of the hanging cloth's time).
-        let (mut lower_ptr, mut lower_row, mut lower_src) = (
-            Vec::with_capacity(dofs + 1),
-            Vec::with_capacity(row_idx.len() / 2 + dofs),
-            Vec::with_capacity(row_idx.len() / 2 + dofs),
-        );
-        lower_ptr.push(0);
-        let mut column: Vec<(usize, usize)> = Vec::new();
-        for (j, &oc) in fwd.iter().enumerate() {
-            column.clear();
-            for k in col_ptr[oc]..col_ptr[oc + 1] {
-                let r = inv[row_idx[k]];
-                if r >= j {
-                    column.push((r, k));
+        // factor's supernodes then align with the 3×3 blocks. Minimum degree, and where the
+        // system says where its vertices sit, nested dissection too: the one whose factor
+        // costs fewer flops is kept (`order.rs`).
+        let mut analysis = Analysis::new(
+            &order::minimum_degree(&nbrs).map_err(StepError::Factorization)?,
+            &col_ptr,
+            &row_idx,
+        )?;
+        if sys.layout.len() == n && analysis.flops >= DISSECTION_MIN_FLOPS {
+            let mut at = vec![Vector3::zeros(); n_vertices];
+            for (v, &f) in free_of.iter().enumerate() {
+                if let Some(p) = at.get_mut(f as usize) {
+                    *p = sys.layout[v];
                 }
             }
-            column.sort_unstable();
-            for &(r, k) in &column {
-                lower_row.push(r);
-                lower_src.push(k);
-            }
-            lower_ptr.push(lower_row.len());
-        }
-        // faer's symbolic analysis reads the upper triangle whatever the side when given no
-        // ordering (the numeric factorization then takes the lower one): its transpose.
-        let mut upper_ptr = vec![0usize; dofs + 1];
-        for &r in &lower_row {
-            upper_ptr[r + 1] += 1;
-        }
-        for j in 0..dofs {
-            upper_ptr[j + 1] += upper_ptr[j];
-        }
-        let mut upper_row = vec![0usize; lower_row.len()];
-        let mut next = upper_ptr.clone();
-        for c in 0..dofs {
-            for &r in &lower_row[lower_ptr[c]..lower_ptr[c + 1]] {
-                upper_row[next[r]] = c;
-                next[r] += 1;
+            if let Some(nd) = order::nested_dissection(&nbrs, &at) {
+                let other = Analysis::new(&nd, &col_ptr, &row_idx)?;
+                if other.flops < DISSECTION_GAIN * analysis.flops {
+                    analysis = other;
+                }
             }
         }
-        let sym = SymbolicSparseColMatRef::new_checked(dofs, dofs, &upper_ptr, None, &upper_row);
-        // Checked once here: `factor_once` builds its view of the lower pattern unchecked.
-        SymbolicSparseColMatRef::new_checked(dofs, dofs, &lower_ptr, None, &lower_row);
-        let symbolic = factorize_symbolic_cholesky(
-            sym,
-            Side::Upper,
-            SymmetricOrdering::Identity,
-            // Supernodal always: it takes the lower triangle as given (the simplicial one
-            // wants the upper and would transpose it each time), and on the hanging cloth
-            // the simplicial factorization was measured 4.6× slower.
-            CholeskySymbolicParams {
-                supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
-                ..Default::default()
-            },
-        )
-        .map_err(|e| StepError::Factorization(format!("{e:?}")))?;
+        let Analysis {
+            fwd,
+            lower_ptr,
+            lower_row,
+            lower_src,
+            symbolic,
+            ..
+        } = analysis;
         // The factorization stays sequential (`Par::Seq` throughout): faer's parallel
         // supernodal Cholesky changes its reduction order with the thread count (measured: a
         // 48×48 cloth differed in the last bits between 1 and 2 threads), and results must be

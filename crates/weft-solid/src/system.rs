@@ -117,6 +117,11 @@ pub struct SolidSystem {
     /// Rigid groups: each group's vertices move as one rigid body (six degrees of freedom in
     /// the Newton system, `integrator/rigid.rs`).
     pub rigid: Vec<RigidGroup>,
+    /// Where the vertices sit (any one configuration, e.g. the start frame's; empty for
+    /// unknown): the Newton solve's fill-reducing ordering may cut the mesh by these
+    /// coordinates (nested dissection, `integrator/order.rs`). It changes only the factor's
+    /// cost and rounding, never what is solved.
+    pub layout: Vec<Vector3<f64>>,
 }
 
 /// Vertices that move as one rigid body (a button, a clasp, a bead): their distances stay
@@ -161,6 +166,7 @@ impl SolidSystem {
             surfaces: Vec::new(),
             sliders: Vec::new(),
             rigid: Vec::new(),
+            layout: Vec::new(),
         }
     }
     /// Damping coefficient of vertex `i` [1/s] (zero when none are set).
