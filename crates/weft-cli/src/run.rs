@@ -234,10 +234,29 @@ pub fn run(registry: &Arc<Registry>, a: RunArgs) -> ExitCode {
     )));
     let mut rows: Vec<(i64, Vec<serde_json::Value>)> = Vec::new();
     let mut failure = None;
+    // Per frame: its evaluation's seconds and how many of them the output nodes (files
+    // written) took, for the statistics.
+    let writers: Vec<String> = g
+        .node_ids()
+        .filter(|id| {
+            g.node_spec(id)
+                .is_some_and(|s| s.name.starts_with("output."))
+        })
+        .map(str::to_owned)
+        .collect();
+    let written = |g: &Graph| -> f64 {
+        writers
+            .iter()
+            .filter_map(|id| g.node_stats(id))
+            .map(|s| s.seconds)
+            .sum()
+    };
+    let mut timings = Vec::with_capacity(frames.len());
     let t_run = Instant::now();
     for (i, &f) in frames.iter().enumerate() {
         let ctx = Context::at(f, a.fps);
         let t0 = Instant::now();
+        let w0 = written(&g);
         let mut row = Vec::with_capacity(outputs.len());
         for o in &outputs {
             match g.pull(o, ctx) {
@@ -253,6 +272,11 @@ pub fn run(registry: &Arc<Registry>, a: RunArgs) -> ExitCode {
         }
         rows.push((f, row));
         let ms = t0.elapsed().as_secs_f64() * 1e3;
+        timings.push(FrameTiming {
+            frame: f,
+            seconds: ms * 1e-3,
+            output_seconds: written(&g) - w0,
+        });
         match &bar {
             Some(b) => {
                 b.set_message(format!("frame {f}: {ms:.2} ms"));
@@ -278,13 +302,13 @@ pub fn run(registry: &Arc<Registry>, a: RunArgs) -> ExitCode {
     }
     let mut code = ExitCode::SUCCESS;
     if let Some(dir) = &a.out
-        && let Err(e) = write_outputs(dir, &a, &outputs, &rows, &g, seconds)
+        && let Err(e) = write_outputs(dir, &a, &outputs, &rows, &g, seconds, &timings)
     {
         eprintln!("error: cannot write to {}: {e}", dir.display());
         code = ExitCode::from(1);
     }
     if let Some(path) = &a.stats_json
-        && let Err(e) = weft_graph::atomic_write(path, stats_json(&g, seconds).as_bytes())
+        && let Err(e) = weft_graph::atomic_write(path, stats_json(&g, seconds, &timings).as_bytes())
     {
         eprintln!("error: cannot write {}: {e}", path.display());
         code = ExitCode::from(1);
@@ -325,8 +349,21 @@ fn warning_line(w: &weft_graph::RunWarning) -> String {
     format!("warning: node '{}'{at}: {}", w.node, w.message)
 }
 
-fn stats_json(g: &Graph, seconds: f64) -> String {
-    let j = serde_json::json!({"seconds": seconds, "nodes": g.stats()});
+/// One frame's evaluation time: `seconds` in all, `output_seconds` of them in output nodes.
+struct FrameTiming {
+    frame: i64,
+    seconds: f64,
+    output_seconds: f64,
+}
+
+fn stats_json(g: &Graph, seconds: f64, frames: &[FrameTiming]) -> String {
+    let frames: Vec<_> = frames
+        .iter()
+        .map(|t| {
+            serde_json::json!({"frame": t.frame, "seconds": t.seconds, "output_seconds": t.output_seconds})
+        })
+        .collect();
+    let j = serde_json::json!({"seconds": seconds, "frames": frames, "nodes": g.stats()});
     serde_json::to_string_pretty(&j).unwrap_or_default() + "\n"
 }
 
@@ -337,6 +374,7 @@ fn write_outputs(
     rows: &[(i64, Vec<serde_json::Value>)],
     g: &Graph,
     seconds: f64,
+    timings: &[FrameTiming],
 ) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
     let mut per_output = serde_json::Map::new();
@@ -401,7 +439,10 @@ fn write_outputs(
         csv.push('\n');
     }
     weft_graph::atomic_write(&dir.join("outputs.csv"), csv.as_bytes())?;
-    weft_graph::atomic_write(&dir.join("stats.json"), stats_json(g, seconds).as_bytes())
+    weft_graph::atomic_write(
+        &dir.join("stats.json"),
+        stats_json(g, seconds, timings).as_bytes(),
+    )
 }
 
 fn stats_text(g: &Graph, seconds: f64) -> String {

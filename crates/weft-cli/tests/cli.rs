@@ -80,6 +80,61 @@ fn run_with_frames_set_out_and_stats() {
     assert_eq!(frames.len(), 3);
     let last = frames[2]["iterations"].as_array().unwrap().last().unwrap();
     assert!(last["residual"].as_f64().unwrap().abs() < 1e-14);
+    // Each frame's seconds, none of them in output nodes (this graph has none), within the
+    // run's.
+    let timed = s["frames"].as_array().unwrap();
+    assert_eq!(
+        timed
+            .iter()
+            .map(|f| f["frame"].as_i64().unwrap())
+            .collect::<Vec<_>>(),
+        [0, 1, 2, 3]
+    );
+    assert!(timed.iter().all(|f| f["output_seconds"] == 0.0));
+    let sum: f64 = timed.iter().map(|f| f["seconds"].as_f64().unwrap()).sum();
+    assert!(sum > 0.0 && sum <= s["seconds"].as_f64().unwrap());
+}
+
+#[test]
+fn stats_say_what_writing_files_cost_each_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let stats = dir.path().join("stats.json");
+    let o = weft(
+        &[
+            "run",
+            "graphs/cloth_hang.json",
+            "--frames",
+            "0..1",
+            "--set",
+            "grid.nx=6",
+            "--set",
+            "grid.ny=6",
+            "--set",
+            "pins.vertices=[0,5]",
+            "--output",
+            "obj",
+            "--out",
+            dir.path().join("out").to_str().unwrap(),
+            "--no-checkpoints",
+            "-q",
+            "--stats-json",
+            stats.to_str().unwrap(),
+        ],
+        &root(),
+    );
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    let frames = s["frames"].as_array().unwrap();
+    assert_eq!(frames.len(), 2);
+    for f in frames {
+        // output.obj wrote this frame's mesh: a share of the frame's time, not all of it.
+        let (all, out) = (
+            f["seconds"].as_f64().unwrap(),
+            f["output_seconds"].as_f64().unwrap(),
+        );
+        assert!(out > 0.0 && out < all, "{f}");
+    }
 }
 
 #[test]
