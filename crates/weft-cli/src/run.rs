@@ -271,10 +271,11 @@ pub fn run(registry: &Arc<Registry>, a: RunArgs) -> ExitCode {
             break;
         }
         rows.push((f, row));
-        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        let seconds = t0.elapsed().as_secs_f64();
+        let ms = seconds * 1e3;
         timings.push(FrameTiming {
             frame: f,
-            seconds: ms * 1e-3,
+            seconds,
             output_seconds: written(&g) - w0,
         });
         match &bar {
