@@ -499,8 +499,8 @@ fn repeated_attachment_vertices_attach_once_and_repeated_behaviors_warn() {
     );
 }
 
-/// Determinism across thread counts: a 40×40 cloth (its large assembly colours above the
-/// parallel threshold) stepped on 1, 2 and 3 threads gives the same bits.
+/// Determinism across thread counts: a 40×40 cloth (its assembly tree split into several
+/// halves run concurrently) stepped on 1, 2 and 3 threads gives the same bits.
 #[test]
 fn a_cloth_gives_identical_bits_on_one_two_and_three_threads() {
     let n = 40;

@@ -15,13 +15,14 @@
 //! iteration only refills values and refactors numerically, into buffers allocated once.
 //!
 //! Why one file of about 1200 lines: it is one type, the [`Integrator`], whose pattern, slots,
-//! colouring and factor buffers are built together in `new_within` and used together by
+//! assembly tree and factor buffers are built together in `new_within` and used together by
 //! assembly and the Newton loop; splitting it would spread those invariants over files. Its
 //! settings, statistics and errors are in `settings.rs`.
 
 mod contacts;
 mod correction;
 mod order;
+mod partition;
 mod rigid;
 mod sliding;
 mod solve;
@@ -43,8 +44,8 @@ use rayon::prelude::*;
 use std::cell::RefCell;
 use std::time::Instant;
 
-/// A colour with fewer elements than this is assembled on the calling thread: below it the
-/// fork–join costs more than it saves (measured on the hanging cloth).
+/// The line search's element energies are computed in parallel from this many elements, in
+/// chunks of at least this many: below it the fork–join costs more than it saves.
 const PARALLEL_MIN: usize = 256;
 
 thread_local! {
@@ -52,9 +53,9 @@ thread_local! {
     static LOCAL: RefCell<Local> = RefCell::new(Local::default());
 }
 
-/// A pointer shared by assembly threads. Sound because the element colouring guarantees that
-/// no two elements of one colour touch the same vertex, hence the same gradient entries or
-/// matrix blocks, and colours are processed one after another.
+/// A pointer shared by assembly threads. Sound because the assembly tree (`partition.rs`)
+/// runs concurrently only its splits' two halves, which touch disjoint free vertices, hence
+/// disjoint gradient entries and matrix blocks; a split's interface runs after both.
 #[derive(Clone, Copy)]
 struct Shared(*mut f64);
 unsafe impl Send for Shared {}
@@ -239,14 +240,14 @@ pub struct Integrator {
     x_trial: Vec<Vector3<f64>>,
     /// The second-order correction's trial positions.
     x_soc: Vec<Vector3<f64>>,
+
     /// The rods' second-order correction (their segments and its scratch).
     correction: correction::LengthCorrection,
     local: Local,
     /// Per element: where its blocks start in `slots`.
     slot_offset: Vec<usize>,
-    /// Elements grouped by colour (no two in a colour share a free vertex), each ascending;
-    /// the last group holds any element the colouring could not place and runs serially.
-    colors: Vec<Vec<u32>>,
+    /// The assembly tree: which elements may be assembled concurrently.
+    parts: partition::Part,
     /// Per element scratch (energies, gradient magnitudes), summed in element order so every
     /// total is bit-identical at any thread count.
     per_element: RefCell<Vec<f64>>,
@@ -504,41 +505,23 @@ impl Integrator {
                 return Err(refuse("the Cholesky factor", need, limit));
             }
         }
-        // Greedy colouring in element order, on free vertices only (pinned ones are never
-        // written). 128 colours cover any stencil this crate builds; an element that finds
-        // none free goes to a final serial group.
-        let mut masks = vec![0u128; n];
-        let mut colors: Vec<Vec<u32>> = Vec::new();
-        let mut serial = Vec::new();
-        for ei in 0..sys.elements.len() {
-            if groups.elements.binary_search(&(ei as u32)).is_ok() {
-                continue;
-            }
-            let free: Vec<usize> = sys
-                .elements
-                .get(ei)
-                .vertices()
-                .iter()
-                .map(|&v| v as usize)
-                .filter(|&v| free_of.get(v).is_some_and(|&f| f != NONE))
-                .collect();
-            let used = free.iter().fold(0u128, |m, &v| m | masks[v]);
-            if used == u128::MAX {
-                serial.push(ei as u32);
-                continue;
-            }
-            let c = (!used).trailing_zeros() as usize;
-            for &v in &free {
-                masks[v] |= 1u128 << c;
-            }
-            if colors.len() <= c {
-                colors.resize_with(c + 1, Vec::new);
-            }
-            colors[c].push(ei as u32);
-        }
-        if !serial.is_empty() {
-            colors.push(serial);
-        }
+        // Which elements may be assembled concurrently (`partition.rs`), by their free
+        // vertices only (pinned ones are never written).
+        let stencils: partition::Stencils = (0..sys.elements.len())
+            .filter(|&ei| groups.elements.binary_search(&(ei as u32)).is_err())
+            .map(|ei| {
+                let free = sys
+                    .elements
+                    .get(ei)
+                    .vertices()
+                    .iter()
+                    .copied()
+                    .filter(|&v| free_of.get(v as usize).is_some_and(|&f| f != NONE))
+                    .collect();
+                (ei as u32, free)
+            })
+            .collect();
+        let parts = partition::partition(stencils, n, &sys.layout);
         let l_values = vec![0.0; symbolic.len_val()];
         let narrow_tmp = match symbolic.raw() {
             SymbolicCholeskyRaw::Supernodal(sn) => solve::narrow(sn).map(|m| vec![0.0; m]),
@@ -588,7 +571,7 @@ impl Integrator {
             slide_normal: Vec::new(),
             per_element: RefCell::new(vec![0.0; slot_offset.len()]),
             slot_offset,
-            colors,
+            parts,
         })
     }
 
@@ -719,7 +702,7 @@ impl Integrator {
                 let local = &mut *l.borrow_mut();
                 let ei = ei as usize;
                 let el = sys.elements.get(ei);
-                // SAFETY: see `Shared`: elements of one colour write disjoint entries, and
+                // SAFETY: see `Shared`: elements run concurrently write disjoint entries, and
                 // `per_element[ei]` belongs to this element alone.
                 unsafe {
                     scatter(
@@ -737,13 +720,7 @@ impl Integrator {
                 };
             })
         };
-        for color in &self.colors {
-            if color.len() >= PARALLEL_MIN && rayon::current_num_threads() > 1 {
-                color.par_iter().for_each(work);
-            } else {
-                color.iter().for_each(work);
-            }
-        }
+        self.parts.run(&work, rayon::current_num_threads() > 1);
         drop(per);
         if !self.groups.is_empty() {
             // Elements with a member: through the groups' Jacobians, in element order.
@@ -1114,13 +1091,13 @@ impl Integrator {
                 }
             }
             self.retract(sys, &mut x);
-            let stats = self.minimize(sys, &mut x, &x0, Mode::Static, settings)?;
+            let stats = in_pool(|| self.minimize(sys, &mut x, &x0, Mode::Static, settings))?;
             state.x = x;
             state.v.iter_mut().for_each(|v| *v = Vector3::zeros());
             return Ok(stats);
         }
         self.predict(sys, state, &mut x, &target, guess, h);
-        let stats = self.minimize(sys, &mut x, &x0, Mode::Dynamic { h }, settings)?;
+        let stats = in_pool(|| self.minimize(sys, &mut x, &x0, Mode::Dynamic { h }, settings))?;
         for i in 0..self.n {
             state.v[i] = (x[i] - x0[i]) / h;
         }
@@ -1184,14 +1161,15 @@ impl Integrator {
         let x0 = state.x.clone();
         let mut x = x0.clone();
         self.retract(sys, &mut x);
-        let stats = self.minimize(sys, &mut x, &x0, Mode::Static, settings)?;
+        let stats = in_pool(|| self.minimize(sys, &mut x, &x0, Mode::Static, settings))?;
         state.x = x;
         state.v.iter_mut().for_each(|v| *v = Vector3::zeros());
         Ok(stats)
     }
 
     /// Newton (exact Hessians first for [`Method::Newton`] in dynamic steps, projected ones
-    /// otherwise) with backtracking line search on the mode's objective.
+    /// otherwise) with backtracking line search on the mode's objective. Callers run it on a
+    /// worker of the thread pool ([`in_pool`]).
     fn minimize(
         &mut self,
         sys: &SolidSystem,
@@ -1427,12 +1405,26 @@ impl Integrator {
     }
 }
 
+/// Runs `f` on a worker of the current thread pool when called from outside it (at once
+/// otherwise). Why: a fork–join started outside the pool injects its job and waits for a
+/// worker to wake, and then for a second one to steal the other half; between two
+/// assemblies (a factorization apart) the workers fall asleep. Measured on this 2-core
+/// machine, a 1 ms job split in two with 10 ms between calls: 1.01 ms from outside the pool
+/// (serial: 0.97 ms), 0.59 ms from a worker.
+pub(crate) fn in_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
+    if rayon::current_thread_index().is_some() || rayon::current_num_threads() < 2 {
+        f()
+    } else {
+        rayon::scope(|_| f())
+    }
+}
+
 /// Evaluates one element at `x` into `local` and adds its gradient and its `hessians` Hessian
 /// into the shared arrays; `scale` receives Σ|gradient entries|.
 ///
 /// # Safety
-/// No other thread may write the entries this element touches while it runs (the colouring
-/// guarantees it), and the pointers must cover the integrator's arrays.
+/// No other thread may write the entries this element touches while it runs (the assembly
+/// tree guarantees it), and the pointers must cover the integrator's arrays.
 #[allow(clippy::too_many_arguments)]
 unsafe fn scatter(
     el: &dyn crate::energy::Element,

@@ -266,6 +266,19 @@ impl Integrator {
         settings: &Settings,
         set: ContactSet<'_>,
     ) -> Result<(StepStats, ContactStats), StepError> {
+        // On a worker of the thread pool, for the assembly's fork–joins (see `in_pool`).
+        super::in_pool(|| self.step_contacts_here(sys, state, pinned_to, h, settings, set))
+    }
+
+    fn step_contacts_here(
+        &mut self,
+        sys: &SolidSystem,
+        state: &mut State,
+        pinned_to: Option<&[Vector3<f64>]>,
+        h: f64,
+        settings: &Settings,
+        set: ContactSet<'_>,
+    ) -> Result<(StepStats, ContactStats), StepError> {
         let (contacts, max_admm) = (set.contacts, set.max_admm);
         sys.check(state)?;
         // First: a rebuild resets every work buffer (the prediction's among them).
