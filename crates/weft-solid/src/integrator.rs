@@ -26,6 +26,7 @@ mod partition;
 mod rigid;
 mod sliding;
 mod solve;
+mod split;
 
 use crate::energy::Local;
 pub use crate::settings::{Method, Settings, StepError, StepStats, StopCheck};
@@ -103,6 +104,14 @@ enum Mode {
 /// −28 %, 256² −61 %.
 const DISSECTION_MIN_FLOPS: f64 = 5e8;
 
+/// Factorizations from this many flops are tried split in two halves factored concurrently
+/// (`split.rs`), and kept when the larger half and the separator cost less than
+/// [`SPLIT_GAIN`] of the whole. Measured on the hanging cloth (2 threads, time per
+/// factorization, whole → split): 24² (2.9e7 flops) 0.89 → 0.89 ms, with solves twice as
+/// long; 32² 2.77 → 2.15 ms; 48² 10.8 → 6.7 ms; 64² 16.7 → 13.3 ms; 128² 267 → 165 ms.
+const SPLIT_MIN_FLOPS: f64 = 5e7;
+const SPLIT_GAIN: f64 = 0.75;
+
 /// Nested dissection replaces minimum degree only with at most this fraction of its flops.
 const DISSECTION_GAIN: f64 = 0.8;
 
@@ -122,13 +131,15 @@ struct Analysis {
 impl Analysis {
     /// The analysis of the pattern (`col_ptr`, `row_idx`: both triangles, 3×3 blocks) with
     /// its vertices eliminated in the order `order` (`order[i]`: the vertex eliminated i-th).
+    /// `order` may list some of the vertices only: the analysis is then of the submatrix of
+    /// those (rows of other vertices are left out).
     fn new(order: &[usize], col_ptr: &[usize], row_idx: &[usize]) -> Result<Self, StepError> {
         let dofs = 3 * order.len();
         let fwd: Vec<usize> = order
             .iter()
             .flat_map(|&v| [3 * v, 3 * v + 1, 3 * v + 2])
             .collect();
-        let mut inv = vec![0usize; dofs];
+        let mut inv = vec![usize::MAX; col_ptr.len() - 1];
         for (i, &d) in fwd.iter().enumerate() {
             inv[d] = i;
         }
@@ -147,7 +158,7 @@ impl Analysis {
             column.clear();
             for k in col_ptr[oc]..col_ptr[oc + 1] {
                 let r = inv[row_idx[k]];
-                if r >= j {
+                if r != usize::MAX && r >= j {
                     column.push((r, k));
                 }
             }
@@ -248,6 +259,10 @@ pub struct Integrator {
     slot_offset: Vec<usize>,
     /// The assembly tree: which elements may be assembled concurrently.
     parts: partition::Part,
+    /// Where set, factorizations and solves go through the two-halves split (`split.rs`).
+    split: Option<split::Split>,
+    /// Never split (tests).
+    whole_only: bool,
     /// Per element scratch (energies, gradient magnitudes), summed in element order so every
     /// total is bit-identical at any thread count.
     per_element: RefCell<Vec<f64>>,
@@ -292,7 +307,14 @@ impl Integrator {
     /// sum over elements of (stencil size)², the factor's size is exact once the symbolic
     /// analysis has run.
     pub fn new_within(sys: &SolidSystem, max_bytes: Option<u64>) -> Result<Self, StepError> {
-        Self::build(sys, max_bytes, Vec::new())
+        Self::build(sys, max_bytes, Vec::new(), false)
+    }
+
+    /// [`Self::new`] without the two-halves split: every factorization whole (tests compare
+    /// the two).
+    #[cfg(test)]
+    pub(crate) fn new_whole(sys: &SolidSystem) -> Result<Self, StepError> {
+        Self::build(sys, None, Vec::new(), true)
     }
 
     /// Makes the pattern the elements' plus exactly the blocks of `extra` (pairs of free
@@ -311,7 +333,7 @@ impl Integrator {
             return Ok(false);
         }
         let stop = self.stop.take();
-        *self = Self::build(sys, self.max_bytes, extra)?;
+        *self = Self::build(sys, self.max_bytes, extra, self.whole_only)?;
         self.stop = stop;
         Ok(true)
     }
@@ -320,6 +342,7 @@ impl Integrator {
         sys: &SolidSystem,
         max_bytes: Option<u64>,
         extra: Vec<(u32, u32)>,
+        whole_only: bool,
     ) -> Result<Self, StepError> {
         const GIB: f64 = (1u64 << 30) as f64;
         let refuse = |what, need: u64, limit: u64| StepError::TooLarge {
@@ -479,6 +502,25 @@ impl Integrator {
                 }
             }
         }
+        // Two halves factored at once (`split.rs`) where the factor is large enough to pay
+        // for the separator's dense work; not with rigid groups (their nodes couple every
+        // member).
+        let split = if sys.rigid.is_empty() && analysis.flops >= SPLIT_MIN_FLOPS && !whole_only {
+            let mut at = Vec::new();
+            if sys.layout.len() == n {
+                at = vec![Vector3::zeros(); n_vertices];
+                for (v, &f) in free_of.iter().enumerate() {
+                    if let Some(p) = at.get_mut(f as usize) {
+                        *p = sys.layout[v];
+                    }
+                }
+            }
+            let order: Vec<usize> = analysis.fwd.iter().step_by(3).map(|&d| d / 3).collect();
+            split::Split::new(&nbrs, &order, &col_ptr, &row_idx, &at)?
+                .filter(|sp| sp.flops < SPLIT_GAIN * analysis.flops)
+        } else {
+            None
+        };
         let Analysis {
             fwd,
             lower_ptr,
@@ -487,10 +529,11 @@ impl Integrator {
             symbolic,
             ..
         } = analysis;
-        // The factorization stays sequential (`Par::Seq` throughout): faer's parallel
+        // Each factorization is sequential (`Par::Seq` throughout): faer's parallel
         // supernodal Cholesky changes its reduction order with the thread count (measured: a
         // 48×48 cloth differed in the last bits between 1 and 2 threads), and results must be
-        // bit-identical at any count. Assembly is where the threads go.
+        // bit-identical at any count; at 128² it was also slower (31 → 44 s for two frames'
+        // factorizations). Threads go to assembly and to the split's two halves.
         let par = Par::Seq;
         let scratch = symbolic
             .factorize_numeric_llt_scratch::<f64>(par, Default::default())
@@ -522,7 +565,9 @@ impl Integrator {
             })
             .collect();
         let parts = partition::partition(stencils, n, &sys.layout);
-        let l_values = vec![0.0; symbolic.len_val()];
+        // A split system factors its halves (`split.rs`): no whole factor to hold.
+        let whole = if split.is_some() { 0 } else { 1 };
+        let l_values = vec![0.0; whole * symbolic.len_val()];
         let narrow_tmp = match symbolic.raw() {
             SymbolicCholeskyRaw::Supernodal(sn) => solve::narrow(sn).map(|m| vec![0.0; m]),
             SymbolicCholeskyRaw::Simplicial(_) => None,
@@ -538,14 +583,18 @@ impl Integrator {
             diag_slot,
             symbolic,
             l_values,
-            lower_values: vec![0.0; lower_row.len()],
+            lower_values: vec![0.0; whole * lower_row.len()],
             lower_ptr,
             lower_row,
             lower_src,
             perm: fwd,
             permuted: vec![0.0; dofs],
             narrow_tmp,
-            mem: MemBuffer::new(scratch),
+            mem: MemBuffer::new(if whole == 1 {
+                scratch
+            } else {
+                faer::dyn_stack::StackReq::EMPTY
+            }),
             grad: vec![0.0; dofs],
             dir: vec![0.0; dofs],
             x_hat: vec![Vector3::zeros(); n],
@@ -570,6 +619,8 @@ impl Integrator {
             slide_scale: Vec::new(),
             slide_normal: Vec::new(),
             per_element: RefCell::new(vec![0.0; slot_offset.len()]),
+            split,
+            whole_only,
             slot_offset,
             parts,
         })
@@ -893,6 +944,13 @@ impl Integrator {
 
     /// One numeric Cholesky factorization of `values` into `l_values`.
     fn factor_once(&mut self) -> Result<(), faer::linalg::solvers::LltError> {
+        if let Some(sp) = self.split.as_mut() {
+            return if sp.factor(&self.values) {
+                Ok(())
+            } else {
+                Err(faer::linalg::solvers::LltError::NonPositivePivot { index: 0 })
+            };
+        }
         let dofs = 3 * self.n_free;
         for (v, &k) in self.lower_values.iter_mut().zip(&self.lower_src) {
             *v = self.values[k];
@@ -972,6 +1030,11 @@ impl Integrator {
     /// Solves with the last factor in place (`b` ← H⁻¹ b, 3 entries per free vertex).
     fn solve_in_place(&mut self, stats: &mut StepStats, b: &mut [f64]) {
         let t = Instant::now();
+        if let Some(sp) = self.split.as_mut() {
+            sp.solve_in_place(b);
+            stats.solve_seconds += t.elapsed().as_secs_f64();
+            return;
+        }
         let dofs = 3 * self.n_free;
         for (p, &i) in self.permuted.iter_mut().zip(&self.perm) {
             *p = b[i];

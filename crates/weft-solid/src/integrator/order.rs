@@ -158,9 +158,52 @@ fn flops(sn: &SymbolicSupernodalCholesky<usize>) -> f64 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::super::{DISSECTION_GAIN, DISSECTION_MIN_FLOPS};
     use super::*;
+    use crate::system::{SolidSystem, State};
+
+    /// A k × k membrane sheet (1 m square, in the xy plane) whose membrane carries weak
+    /// springs to every vertex two rows or columns away, which couple each vertex's two-ring
+    /// as shell bending does; gravity along −z, held at two corners of its first row.
+    pub(in crate::integrator) fn two_ring_sheet(k: usize) -> (SolidSystem, State) {
+        use crate::energy::{MembraneMaterial, RodStretch};
+        let mat = MembraneMaterial::orthotropic(1e6, 0.3, 1e-3, 1.0, 1.0, 1.0);
+        let (mut sys, state) =
+            crate::verify::membrane_sheet(k, k, 1.0, 1.0, mat, Vector3::x()).unwrap();
+        // Every vertex two rows or columns away (a 5 × 5 stencil, as the shell's two-ring).
+        let ring: Vec<(i64, i64)> = (-2i64..=2)
+            .flat_map(|di| (0i64..=2).map(move |dj| (di, dj)))
+            .filter(|&(di, dj)| (dj > 0 || di > 0) && di.abs().max(dj) == 2)
+            .collect();
+        for j in 0..k as i64 {
+            for i in 0..k as i64 {
+                for &(di, dj) in &ring {
+                    let (ii, jj) = (i + di, j + dj);
+                    if (0..k as i64).contains(&ii) && jj < k as i64 {
+                        let (a, b) = ((j * k as i64 + i) as usize, (jj * k as i64 + ii) as usize);
+                        sys.elements.stretches.push(RodStretch {
+                            v: [a as u32, b as u32],
+                            rest_length: (state.x[a] - state.x[b]).norm(),
+                            k: 10.0,
+                        });
+                    }
+                }
+            }
+        }
+        sys.gravity = Vector3::new(0.0, 0.0, -9.81);
+        sys.pinned[0] = true;
+        sys.pinned[k - 1] = true;
+        (sys, state)
+    }
+
+    /// The largest distance between corresponding vertices of two states.
+    pub(in crate::integrator) fn farthest(a: &State, b: &State) -> f64 {
+        a.x.iter()
+            .zip(&b.x)
+            .map(|(p, q)| (p - q).norm())
+            .fold(0.0, f64::max)
+    }
 
     /// The vertex graph of a k × k grid where each vertex neighbours those within `reach`
     /// rows and columns (itself included), and the grid's coordinates.
@@ -228,35 +271,9 @@ mod tests {
     /// minimum degree does well: 9.6e8 flops at 120² against dissection's 8.2e8).
     #[test]
     fn a_large_sheet_with_a_layout_is_dissected_and_steps_to_the_same_answer() {
-        use crate::energy::{MembraneMaterial, RodStretch};
         use crate::integrator::{Integrator, Settings};
         let k = 100;
-        let mat = MembraneMaterial::orthotropic(1e6, 0.3, 1e-3, 1.0, 1.0, 1.0);
-        let (mut sys, state) =
-            crate::verify::membrane_sheet(k, k, 1.0, 1.0, mat, Vector3::x()).unwrap();
-        // Every vertex two rows or columns away (a 5 × 5 stencil, as the shell's two-ring).
-        let ring: Vec<(i64, i64)> = (-2i64..=2)
-            .flat_map(|di| (0i64..=2).map(move |dj| (di, dj)))
-            .filter(|&(di, dj)| (dj > 0 || di > 0) && di.abs().max(dj) == 2)
-            .collect();
-        for j in 0..k as i64 {
-            for i in 0..k as i64 {
-                for &(di, dj) in &ring {
-                    let (ii, jj) = (i + di, j + dj);
-                    if (0..k as i64).contains(&ii) && jj < k as i64 {
-                        let (a, b) = ((j * k as i64 + i) as usize, (jj * k as i64 + ii) as usize);
-                        sys.elements.stretches.push(RodStretch {
-                            v: [a as u32, b as u32],
-                            rest_length: (state.x[a] - state.x[b]).norm(),
-                            k: 10.0,
-                        });
-                    }
-                }
-            }
-        }
-        sys.gravity = Vector3::new(0.0, 0.0, -9.81);
-        sys.pinned[0] = true;
-        sys.pinned[k - 1] = true;
+        let (mut sys, state) = two_ring_sheet(k);
         let plain = Integrator::new(&sys).unwrap();
         sys.layout = state.x.clone();
         let cut = Integrator::new(&sys).unwrap();
@@ -289,11 +306,7 @@ mod tests {
         let (mut plain, mut cut) = (plain, cut);
         plain.step(&sys, &mut a, None, h, &settings).unwrap();
         cut.step(&sys, &mut b, None, h, &settings).unwrap();
-        let far =
-            a.x.iter()
-                .zip(&b.x)
-                .map(|(p, q)| (p - q).norm())
-                .fold(0.0, f64::max);
+        let far = farthest(&a, &b);
         assert!(far < 1e-8, "the orderings' steps differ by {far:e} m");
     }
 

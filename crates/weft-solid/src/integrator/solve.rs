@@ -16,7 +16,13 @@
 //! listed from `row_idx[col_ptr_for_row_idx[s]]`. Every operation runs in a fixed order on
 //! one thread: the same bits at any thread count.
 
+use faer::linalg::matmul::matmul;
+use faer::linalg::triangular_solve::{
+    solve_lower_triangular_in_place, solve_upper_triangular_in_place,
+};
+use faer::reborrow::{Reborrow, ReborrowMut};
 use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
+use faer::{Accum, MatMut, MatRef, Par};
 
 /// Whether plain loops beat faer's dense kernels on every supernode of the factor (none has
 /// 4 columns or more with 24 rows or more below them), and the longest pattern below a
@@ -36,6 +42,12 @@ pub(super) fn narrow(symbolic: &SymbolicSupernodalCholesky<usize>) -> Option<usi
     Some(longest)
 }
 
+/// A supernode whose solve goes to faer's dense kernels: the complement of [`narrow`]'s test
+/// (so factors that are narrow everywhere, hair's, never take it).
+fn wide(w: usize, m: usize) -> bool {
+    w >= 4 && m >= 24
+}
+
 /// x ← (L Lᵀ)⁻¹ x for the supernodal factor `values` of `symbolic`; `tmp` is scratch of at
 /// least the longest supernode pattern ([`narrow`]'s answer).
 pub(super) fn supernodal_solve(
@@ -44,26 +56,57 @@ pub(super) fn supernodal_solve(
     x: &mut [f64],
     tmp: &mut [f64],
 ) {
+    forward(symbolic, values, x, tmp);
+    backward(symbolic, values, x, tmp);
+}
+
+/// The pieces of one supernode: (first column, width, leading dimension, values, rows below).
+fn block<'a>(
+    symbolic: &'a SymbolicSupernodalCholesky<usize>,
+    values: &'a [f64],
+    s: usize,
+) -> (usize, usize, usize, &'a [f64], &'a [usize]) {
     let (begin, end) = (symbolic.supernode_begin(), symbolic.supernode_end());
     let (val_ptr, row_ptr, rows) = (
         symbolic.col_ptr_for_val(),
         symbolic.col_ptr_for_row_idx(),
         symbolic.row_idx(),
     );
-    let block = |s: usize| {
-        let w = end[s] - begin[s];
-        let vals = &values[val_ptr[s]..val_ptr[s + 1]];
-        let lda = vals.len() / w;
-        let pattern = &rows[row_ptr[s]..row_ptr[s] + (lda - w)];
-        (begin[s], w, lda, vals, pattern)
-    };
+    let w = end[s] - begin[s];
+    let vals = &values[val_ptr[s]..val_ptr[s + 1]];
+    let lda = vals.len() / w;
+    let pattern = &rows[row_ptr[s]..row_ptr[s] + (lda - w)];
+    (begin[s], w, lda, vals, pattern)
+}
+
+/// x ← L⁻¹ x (see [`supernodal_solve`]).
+pub(super) fn forward(
+    symbolic: &SymbolicSupernodalCholesky<usize>,
+    values: &[f64],
+    x: &mut [f64],
+    tmp: &mut [f64],
+) {
+    let block = |s: usize| block(symbolic, values, s);
+    let n_supernodes = symbolic.supernode_begin().len();
     // Forward: L y = x, supernode by supernode. The rows below a supernode's diagonal block
     // gather L_bot · x_top column by column into `tmp` (contiguous, vectorized), then leave
     // it in x in one scatter.
-    for s in 0..begin.len() {
+    for s in 0..n_supernodes {
         let (start, w, lda, vals, pattern) = block(s);
         let m = lda - w;
         let t = &mut tmp[..m];
+        if wide(w, m) {
+            // faer's dense kernels (see `narrow`): x_top ← L_top⁻¹ x_top, t ← L_bot x_top.
+            let l = MatRef::from_column_major_slice_with_stride(vals, lda, w, lda);
+            let mut top = MatMut::from_column_major_slice_mut(&mut x[start..start + w], w, 1);
+            solve_lower_triangular_in_place(l.subrows(0, w), top.rb_mut(), Par::Seq);
+            let tm = MatMut::from_column_major_slice_mut(t, m, 1);
+            matmul(tm, Accum::Replace, l.subrows(w, m), top.rb(), 1.0, Par::Seq);
+            for (&r, &t) in pattern.iter().zip(t.iter()) {
+                x[r] -= t;
+            }
+            continue;
+        }
         t.iter_mut().for_each(|v| *v = 0.0);
         for j in 0..w {
             let col = &vals[j * lda..(j + 1) * lda];
@@ -80,14 +123,41 @@ pub(super) fn supernodal_solve(
             x[r] -= t;
         }
     }
+}
+
+/// x ← L⁻ᵀ x (see [`supernodal_solve`]).
+pub(super) fn backward(
+    symbolic: &SymbolicSupernodalCholesky<usize>,
+    values: &[f64],
+    x: &mut [f64],
+    tmp: &mut [f64],
+) {
+    let block = |s: usize| block(symbolic, values, s);
+    let n_supernodes = symbolic.supernode_begin().len();
     // Backward: Lᵀ x = y, supernodes in reverse; the rows below are gathered once, and each
     // column's dot product with them runs in four lanes (a fixed order: same bits always).
-    for s in (0..begin.len()).rev() {
+    for s in (0..n_supernodes).rev() {
         let (start, w, lda, vals, pattern) = block(s);
         let m = lda - w;
         let t = &mut tmp[..m];
         for (t, &r) in t.iter_mut().zip(pattern) {
             *t = x[r];
+        }
+        if wide(w, m) {
+            // x_top ← L_top⁻ᵀ (x_top − L_botᵀ t).
+            let l = MatRef::from_column_major_slice_with_stride(vals, lda, w, lda);
+            let mut top = MatMut::from_column_major_slice_mut(&mut x[start..start + w], w, 1);
+            let tm = MatRef::from_column_major_slice(t, m, 1);
+            matmul(
+                top.rb_mut(),
+                Accum::Add,
+                l.subrows(w, m).transpose(),
+                tm,
+                -1.0,
+                Par::Seq,
+            );
+            solve_upper_triangular_in_place(l.subrows(0, w).transpose(), top, Par::Seq);
+            continue;
         }
         for j in (0..w).rev() {
             let col = &vals[j * lda..(j + 1) * lda];

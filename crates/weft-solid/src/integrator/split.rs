@@ -1,0 +1,560 @@
+//! The Newton system factored as two halves at once: a Schur complement on a separator.
+//!
+//! The numeric Cholesky factorization is most of a cloth iteration's time, and faer's runs on
+//! one thread (its parallel one changes its sums with the thread count). This splits the
+//! system's vertices at the median of their layout (else of their indices) into halves A and
+//! B, and takes as separator S the vertices of A that touch B. With A' = A \ S the matrix is
+//!
+//! `K = [[K_A'A', 0, K_A'S], [0, K_BB, K_BS], [K_SA', K_SB, K_SS]]`.
+//!
+//! Each half is factored with the separator bordering it, `M_A = [[K_A'A', K_A'S], [K_SA',
+//! K_SS]] = F_A F_Aᵀ` (faer's supernodal Cholesky, the two halves concurrently, each
+//! sequential). The trailing block of F_A is L_A with `L_A L_Aᵀ = K_SS − U_A`, U_A =
+//! K_SA' K_A'A'⁻¹ K_A'S, so the separator's Schur complement is
+//! `S̃ = K_SS − U_A − U_B = L_A L_Aᵀ + L_B L_Bᵀ − K_SS`, factored dense. K is positive
+//! definite exactly when M_A, M_B and S̃ are (if K is, K_SS − U_A ⪰ S̃ ≻ 0), so a failed
+//! factorization still means "not positive definite", as the whole one does.
+//!
+//! Solve K x = b: forward through F_A with [b_A'; 0] gives y_A' and t_A = −L_A⁻¹ W_Aᵀ y_A'
+//! (W_Aᵀ the bordering rows of F_A), likewise B; then S̃ x_S = b_S + L_A t_A + L_B t_B; then
+//! backward through F_Aᵀ with [y_A'; L_Aᵀ x_S] gives x_A' (and x_S again), likewise B.
+//!
+//! Every operation runs in a fixed order and the split depends on the system only (never on
+//! the thread count), so the results are the same bits at any thread count; with one thread
+//! the halves run one after the other.
+
+use super::{Analysis, StepError, solve};
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::llt::factor::{LltRegularization, cholesky_in_place};
+use faer::reborrow::ReborrowMut;
+use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
+use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{Accum, MatMut, MatRef, Par, Side as FaerSide};
+use nalgebra::Vector3;
+
+/// One half, bordered by the separator.
+struct Half {
+    /// Unknown i of this half's factor is DOF `fwd[i]`; the separator's DOFs are the last
+    /// `3 · n_sep`, in the separator's order.
+    fwd: Vec<usize>,
+    /// DOFs before the separator's.
+    own: usize,
+    analysis: Analysis,
+    lower_values: Vec<f64>,
+    l_values: Vec<f64>,
+    mem: MemBuffer,
+    /// The solve's vector in this half's order, and the supernodal solve's scratch.
+    x: Vec<f64>,
+    tmp: Vec<f64>,
+    /// The trailing block L of the factor (dense, column-major, lower).
+    tail: Vec<f64>,
+}
+
+impl Half {
+    fn new(
+        order: &[usize],
+        own_vertices: usize,
+        col_ptr: &[usize],
+        row_idx: &[usize],
+    ) -> Result<Self, StepError> {
+        let analysis = Analysis::new(order, col_ptr, row_idx)?;
+        let SymbolicCholeskyRaw::Supernodal(sn) = analysis.symbolic.raw() else {
+            return Err(StepError::Factorization(
+                "expected a supernodal analysis".into(),
+            ));
+        };
+        let tmp = vec![0.0; longest_pattern(sn)];
+        let scratch = analysis
+            .symbolic
+            .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default());
+        let dofs = analysis.fwd.len();
+        let sep = dofs - 3 * own_vertices;
+        Ok(Half {
+            fwd: analysis.fwd.clone(),
+            own: 3 * own_vertices,
+            lower_values: vec![0.0; analysis.lower_row.len()],
+            l_values: vec![0.0; analysis.symbolic.len_val()],
+            mem: MemBuffer::new(scratch),
+            x: vec![0.0; dofs],
+            tmp,
+            tail: vec![0.0; sep * sep],
+            analysis,
+        })
+    }
+
+    fn supernodal(&self) -> &SymbolicSupernodalCholesky<usize> {
+        match self.analysis.symbolic.raw() {
+            SymbolicCholeskyRaw::Supernodal(sn) => sn,
+            SymbolicCholeskyRaw::Simplicial(_) => unreachable!("checked in Half::new"),
+        }
+    }
+
+    /// Factors this half's bordered matrix from `values`, and copies the factor's trailing
+    /// block into `tail`: whether it was positive definite.
+    fn factor(&mut self, values: &[f64]) -> bool {
+        for (v, &k) in self.lower_values.iter_mut().zip(&self.analysis.lower_src) {
+            *v = values[k];
+        }
+        let dofs = self.fwd.len();
+        // SAFETY: `Analysis::new` checked this pattern with `new_checked`.
+        let sym = unsafe {
+            SymbolicSparseColMatRef::new_unchecked(
+                dofs,
+                dofs,
+                &self.analysis.lower_ptr,
+                None,
+                &self.analysis.lower_row,
+            )
+        };
+        let ok = self
+            .analysis
+            .symbolic
+            .factorize_numeric_llt(
+                &mut self.l_values,
+                SparseColMatRef::new(sym, &self.lower_values),
+                FaerSide::Lower,
+                Default::default(),
+                Par::Seq,
+                MemStack::new(&mut self.mem),
+                Default::default(),
+            )
+            .is_ok();
+        if ok {
+            self.copy_tail();
+        }
+        ok
+    }
+
+    /// `tail` ← the factor's rows and columns from `own` on.
+    fn copy_tail(&mut self) {
+        let n = self.fwd.len() - self.own;
+        let own = self.own;
+        let mut tail = std::mem::take(&mut self.tail);
+        tail.iter_mut().for_each(|v| *v = 0.0);
+        let sn = self.supernodal();
+        let (begin, end) = (sn.supernode_begin(), sn.supernode_end());
+        let (val_ptr, row_ptr, rows) =
+            (sn.col_ptr_for_val(), sn.col_ptr_for_row_idx(), sn.row_idx());
+        for s in 0..begin.len() {
+            if end[s] <= own {
+                continue;
+            }
+            let w = end[s] - begin[s];
+            let vals = &self.l_values[val_ptr[s]..val_ptr[s + 1]];
+            let lda = vals.len() / w;
+            let pattern = &rows[row_ptr[s]..row_ptr[s] + (lda - w)];
+            for c in begin[s].max(own)..end[s] {
+                let col = &vals[(c - begin[s]) * lda..(c - begin[s] + 1) * lda];
+                let j = c - own;
+                for r in c..end[s] {
+                    tail[(r - own) + j * n] = col[r - begin[s]];
+                }
+                for (k, &r) in pattern.iter().enumerate() {
+                    tail[(r - own) + j * n] = col[w + k];
+                }
+            }
+        }
+        self.tail = tail;
+    }
+}
+
+/// The longest pattern below a supernode's diagonal block (the solve's scratch).
+fn longest_pattern(sn: &SymbolicSupernodalCholesky<usize>) -> usize {
+    let (begin, end) = (sn.supernode_begin(), sn.supernode_end());
+    let val_ptr = sn.col_ptr_for_val();
+    (0..begin.len())
+        .map(|s| {
+            let w = end[s] - begin[s];
+            (val_ptr[s + 1] - val_ptr[s]) / w - w
+        })
+        .max()
+        .unwrap_or(0)
+}
+
+/// The split factorization (see the module's doc).
+pub(super) struct Split {
+    halves: [Half; 2],
+    /// The separator's DOFs, in the halves' trailing order.
+    sep: Vec<usize>,
+    /// K_SS's lower triangle: (row, column, index in `values`), in the separator's order.
+    kss: Vec<(usize, usize, usize)>,
+    /// S̃, then its dense Cholesky factor (column-major, lower).
+    schur: Vec<f64>,
+    /// The separator's right-hand side and solution.
+    xs: Vec<f64>,
+    mem: MemBuffer,
+    /// Flops of the larger half's factorization plus the separator's dense work.
+    pub(super) flops: f64,
+}
+
+impl Split {
+    /// The split of the system whose vertex graph is `nbrs` (sorted, itself included) and
+    /// whose value pattern is `col_ptr`/`row_idx` (3×3 blocks), with vertices eliminated
+    /// within each half in the order they have in `order` (the whole system's ordering).
+    /// `at`: the vertices' positions, or empty. None when the split is degenerate.
+    pub(super) fn new(
+        nbrs: &[Vec<u32>],
+        order: &[usize],
+        col_ptr: &[usize],
+        row_idx: &[usize],
+        at: &[Vector3<f64>],
+    ) -> Result<Option<Self>, StepError> {
+        let n = nbrs.len();
+        if n < 8 {
+            return Ok(None);
+        }
+        let mut verts: Vec<u32> = (0..n as u32).collect();
+        let mid = n / 2;
+        if at.len() == n && at.iter().all(|p| p.iter().all(|c| c.is_finite())) {
+            let (mut lo, mut hi) = (at[0], at[0]);
+            for p in at {
+                lo = lo.inf(p);
+                hi = hi.sup(p);
+            }
+            let axis = (hi - lo).imax();
+            verts.sort_by(|&a, &b| {
+                at[a as usize][axis]
+                    .total_cmp(&at[b as usize][axis])
+                    .then(a.cmp(&b))
+            });
+        }
+        // side: 0 = A', 1 = B, 2 = separator (vertices of A touching B). The cut moves once
+        // by half the first separator, so that A' and B get about as many vertices.
+        let mut side = vec![1u8; n];
+        let cut = |mid: usize, side: &mut Vec<u8>| {
+            side.iter_mut().for_each(|s| *s = 1);
+            for &v in &verts[..mid] {
+                side[v as usize] = 0;
+            }
+            for &v in &verts[..mid] {
+                if nbrs[v as usize].iter().any(|&u| side[u as usize] == 1) {
+                    side[v as usize] = 2;
+                }
+            }
+            side.iter().filter(|&&s| s == 2).count()
+        };
+        let first = cut(mid, &mut side);
+        cut((mid + first / 2).min(n - 1), &mut side);
+        let sep_vertices: Vec<usize> = (0..n).filter(|&v| side[v] == 2).collect();
+        let count = |k: u8| side.iter().filter(|&&s| s == k).count();
+        let (na, nb, ns) = (count(0), count(1), sep_vertices.len());
+        // A separator as large as a half gains nothing.
+        if na == 0 || nb == 0 || 4 * ns > n {
+            return Ok(None);
+        }
+        let half_order = |k: u8| -> Vec<usize> {
+            let mut o: Vec<usize> = order.iter().copied().filter(|&v| side[v] == k).collect();
+            o.extend(&sep_vertices);
+            o
+        };
+        let a = Half::new(&half_order(0), na, col_ptr, row_idx)?;
+        let b = Half::new(&half_order(1), nb, col_ptr, row_idx)?;
+        let sep: Vec<usize> = sep_vertices
+            .iter()
+            .flat_map(|&v| [3 * v, 3 * v + 1, 3 * v + 2])
+            .collect();
+        let m = sep.len();
+        let mut pos = vec![usize::MAX; col_ptr.len() - 1];
+        for (i, &d) in sep.iter().enumerate() {
+            pos[d] = i;
+        }
+        let mut kss = Vec::new();
+        for (j, &d) in sep.iter().enumerate() {
+            for k in col_ptr[d]..col_ptr[d + 1] {
+                let i = pos[row_idx[k]];
+                if i != usize::MAX && i >= j {
+                    kss.push((i, j, k));
+                }
+            }
+        }
+        let mf = m as f64;
+        // Two triangular products (m³/3 flops each) and a dense Cholesky (m³/3).
+        let flops = a.analysis.flops.max(b.analysis.flops) + mf * mf * mf;
+        let scratch = faer::linalg::cholesky::llt::factor::cholesky_in_place_scratch::<f64>(
+            m,
+            Par::Seq,
+            Default::default(),
+        );
+        Ok(Some(Split {
+            halves: [a, b],
+            sep,
+            kss,
+            schur: vec![0.0; m * m],
+            xs: vec![0.0; m],
+            mem: MemBuffer::new(scratch),
+            flops,
+        }))
+    }
+
+    /// Factors `values` (the whole pattern's): whether the matrix is positive definite.
+    pub(super) fn factor(&mut self, values: &[f64]) -> bool {
+        let [a, b] = &mut self.halves;
+        let (ok_a, ok_b) = rayon::join(|| a.factor(values), || b.factor(values));
+        if !(ok_a && ok_b) {
+            return false;
+        }
+        let m = self.sep.len();
+        // S̃ = L_A L_Aᵀ + L_B L_Bᵀ − K_SS (full products; only the lower half is read).
+        let mut s = MatMut::from_column_major_slice_mut(&mut self.schur, m, m);
+        let la = MatRef::from_column_major_slice(&self.halves[0].tail, m, m);
+        let lb = MatRef::from_column_major_slice(&self.halves[1].tail, m, m);
+        use faer::linalg::matmul::triangular::{BlockStructure, matmul};
+        for (l, acc) in [(la, Accum::Replace), (lb, Accum::Add)] {
+            matmul(
+                s.rb_mut(),
+                BlockStructure::TriangularLower,
+                acc,
+                l,
+                BlockStructure::TriangularLower,
+                l.transpose(),
+                BlockStructure::TriangularUpper,
+                1.0,
+                Par::Seq,
+            );
+        }
+        for &(i, j, k) in &self.kss {
+            s[(i, j)] -= values[k];
+        }
+        cholesky_in_place(
+            s,
+            LltRegularization {
+                dynamic_regularization_delta: 0.0,
+                dynamic_regularization_epsilon: 0.0,
+            },
+            Par::Seq,
+            MemStack::new(&mut self.mem),
+            Default::default(),
+        )
+        .is_ok()
+    }
+
+    /// b ← K⁻¹ b with the last factorization (`b` in the whole system's DOF order).
+    pub(super) fn solve_in_place(&mut self, b: &mut [f64]) {
+        let m = self.sep.len();
+        // Forward through each half with the separator's entries zero.
+        for h in &mut self.halves {
+            for (x, &d) in h.x[..h.own].iter_mut().zip(&h.fwd) {
+                *x = b[d];
+            }
+            h.x[h.own..].iter_mut().for_each(|v| *v = 0.0);
+            let sn = match h.analysis.symbolic.raw() {
+                SymbolicCholeskyRaw::Supernodal(sn) => sn,
+                SymbolicCholeskyRaw::Simplicial(_) => unreachable!("checked in Half::new"),
+            };
+            solve::forward(sn, &h.l_values, &mut h.x, &mut h.tmp);
+        }
+        // The separator: S̃ x_S = b_S + L_A t_A + L_B t_B (L lower-triangular, dense).
+        for (x, &d) in self.xs.iter_mut().zip(&self.sep) {
+            *x = b[d];
+        }
+        for h in &self.halves {
+            let t = &h.x[h.own..];
+            for (j, &tj) in t.iter().enumerate() {
+                for i in j..m {
+                    self.xs[i] += h.tail[i + j * m] * tj;
+                }
+            }
+        }
+        dense_solve(&self.schur, m, &mut self.xs);
+        // Backward through each half from [y; Lᵀ x_S].
+        for h in &mut self.halves {
+            for j in 0..m {
+                let mut acc = 0.0;
+                for i in j..m {
+                    acc += h.tail[i + j * m] * self.xs[i];
+                }
+                h.x[h.own + j] = acc;
+            }
+            let sn = match h.analysis.symbolic.raw() {
+                SymbolicCholeskyRaw::Supernodal(sn) => sn,
+                SymbolicCholeskyRaw::Simplicial(_) => unreachable!("checked in Half::new"),
+            };
+            solve::backward(sn, &h.l_values, &mut h.x, &mut h.tmp);
+            for (&x, &d) in h.x[..h.own].iter().zip(&h.fwd) {
+                b[d] = x;
+            }
+        }
+        for (&x, &d) in self.xs.iter().zip(&self.sep) {
+            b[d] = x;
+        }
+    }
+}
+
+/// x ← (L Lᵀ)⁻¹ x for a dense lower-triangular L (column-major, m × m).
+fn dense_solve(l: &[f64], m: usize, x: &mut [f64]) {
+    for j in 0..m {
+        let xj = x[j] / l[j + j * m];
+        x[j] = xj;
+        for i in j + 1..m {
+            x[i] -= l[i + j * m] * xj;
+        }
+    }
+    for j in (0..m).rev() {
+        let mut acc = x[j];
+        for i in j + 1..m {
+            acc -= l[i + j * m] * x[i];
+        }
+        x[j] = acc / l[j + j * m];
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{DMatrix, DVector};
+
+    /// A k × k grid whose vertices couple their two-ring (a shell's pattern), its positions,
+    /// and the 3×3-block pattern of the integrator (both triangles, rows sorted).
+    /// (vertex graph, positions, column pointers, row indices).
+    type Grid = (Vec<Vec<u32>>, Vec<Vector3<f64>>, Vec<usize>, Vec<usize>);
+
+    fn grid(k: usize) -> Grid {
+        let mut nbrs = vec![Vec::new(); k * k];
+        for j in 0..k {
+            for i in 0..k {
+                for dj in -2i64..=2 {
+                    for di in -2i64..=2 {
+                        let (a, b) = (i as i64 + di, j as i64 + dj);
+                        if (0..k as i64).contains(&a) && (0..k as i64).contains(&b) {
+                            nbrs[j * k + i].push((b as usize * k + a as usize) as u32);
+                        }
+                    }
+                }
+            }
+        }
+        for l in &mut nbrs {
+            l.sort_unstable();
+        }
+        let at = (0..k * k)
+            .map(|v| Vector3::new((v % k) as f64, 0.0, (v / k) as f64))
+            .collect();
+        let (col_ptr, row_idx) = pattern(&nbrs);
+        (nbrs, at, col_ptr, row_idx)
+    }
+
+    /// The integrator's 3×3-block pattern of a vertex graph (both triangles, rows sorted).
+    fn pattern(nbrs: &[Vec<u32>]) -> (Vec<usize>, Vec<usize>) {
+        let (mut col_ptr, mut row_idx) = (vec![0], Vec::new());
+        for l in nbrs {
+            for _ in 0..3 {
+                for &i in l {
+                    row_idx.extend((0..3).map(|r| 3 * i as usize + r));
+                }
+                col_ptr.push(row_idx.len());
+            }
+        }
+        (col_ptr, row_idx)
+    }
+
+    /// Values of an SPD matrix on that pattern: off-diagonal entries from a smooth function
+    /// of (row, column), symmetric, and a dominant diagonal.
+    fn spd(col_ptr: &[usize], row_idx: &[usize]) -> Vec<f64> {
+        let mut v = vec![0.0; row_idx.len()];
+        for c in 0..col_ptr.len() - 1 {
+            for k in col_ptr[c]..col_ptr[c + 1] {
+                let r = row_idx[k];
+                v[k] = if r == c {
+                    40.0 + (c % 7) as f64
+                } else {
+                    -0.3 * (((r + c) % 5) as f64 / 5.0 + 0.1)
+                };
+            }
+        }
+        v
+    }
+
+    fn dense(col_ptr: &[usize], row_idx: &[usize], v: &[f64]) -> DMatrix<f64> {
+        let n = col_ptr.len() - 1;
+        let mut m = DMatrix::zeros(n, n);
+        for c in 0..n {
+            for k in col_ptr[c]..col_ptr[c + 1] {
+                m[(row_idx[k], c)] = v[k];
+            }
+        }
+        m
+    }
+
+    #[test]
+    fn the_split_solves_like_a_dense_cholesky_and_finds_indefinite_matrices() {
+        let k = 20;
+        let (nbrs, at, col_ptr, row_idx) = grid(k);
+        let order: Vec<usize> = (0..k * k).collect();
+        for layout in [&at[..], &[]] {
+            let mut sp = Split::new(&nbrs, &order, &col_ptr, &row_idx, layout)
+                .unwrap()
+                .expect("a 20 × 20 grid splits");
+            // The separator: two grid lines (the two-ring), 40 vertices.
+            assert_eq!(sp.sep.len(), 3 * 2 * k);
+            let values = spd(&col_ptr, &row_idx);
+            assert!(sp.factor(&values));
+            let b: Vec<f64> = (0..3 * k * k)
+                .map(|i| ((i * 37) % 11) as f64 - 5.0)
+                .collect();
+            let mut x = b.clone();
+            sp.solve_in_place(&mut x);
+            let a = dense(&col_ptr, &row_idx, &values);
+            let want = a.clone().cholesky().unwrap().solve(&DVector::from_vec(b));
+            // 1e-12 relative: both are a few roundings from the exact solution of a
+            // well-conditioned (diagonally dominant) system.
+            let err = (DVector::from_vec(x) - &want).amax() / want.amax();
+            assert!(err < 1e-12, "{err:e}");
+            // A negative diagonal entry in either half or on the separator: not SPD.
+            for v in [3 * 5 * k + 3, 3 * (k * k - 7), sp.sep[4]] {
+                let mut bad = values.clone();
+                let diag = (col_ptr[v]..col_ptr[v + 1])
+                    .find(|&j| row_idx[j] == v)
+                    .unwrap();
+                bad[diag] = -5.0;
+                assert!(!sp.factor(&bad), "DOF {v}");
+            }
+        }
+    }
+
+    /// A hanging 48 × 48 sheet whose vertices couple their two-ring (weak springs two rows
+    /// or columns away, as shell bending couples them): the integrator splits it, and a step
+    /// with the split reaches the same minimizer as one with the whole factorization.
+    #[test]
+    fn a_split_sheet_steps_to_the_same_answer_as_a_whole_one() {
+        use crate::integrator::order::tests::{farthest, two_ring_sheet};
+        use crate::integrator::{Integrator, Settings};
+        let (mut sys, state) = two_ring_sheet(48);
+        sys.layout = state.x.clone();
+        let mut split = Integrator::new(&sys).unwrap();
+        let mut whole = Integrator::new_whole(&sys).unwrap();
+        assert!(split.split.is_some() && whole.split.is_none());
+        let settings = Settings::default();
+        let h = 1.0 / 48.0;
+        let (mut a, mut b) = (state.clone(), state.clone());
+        for _ in 0..2 {
+            split.step(&sys, &mut a, None, h, &settings).unwrap();
+            whole.step(&sys, &mut b, None, h, &settings).unwrap();
+        }
+        // The same minimizer to well within the tolerance's scale (1e-4 m/s · h ≈ 2e-6 m):
+        // the two factorizations differ by rounding only.
+        let far = farthest(&a, &b);
+        assert!(far < 1e-9, "the split's steps differ by {far:e} m");
+    }
+
+    #[test]
+    fn small_or_unseparable_systems_are_not_split() {
+        let (nbrs, at, col_ptr, row_idx) = grid(2);
+        let order: Vec<usize> = (0..4).collect();
+        assert!(
+            Split::new(&nbrs, &order, &col_ptr, &row_idx, &at)
+                .unwrap()
+                .is_none()
+        );
+        // Every vertex coupled to every other: the separator would be a whole half.
+        let n = 16;
+        let all: Vec<u32> = (0..n as u32).collect();
+        let nbrs = vec![all; n];
+        let (col_ptr, row_idx) = pattern(&nbrs);
+        let order: Vec<usize> = (0..n).collect();
+        assert!(
+            Split::new(&nbrs, &order, &col_ptr, &row_idx, &[])
+                .unwrap()
+                .is_none()
+        );
+    }
+}
