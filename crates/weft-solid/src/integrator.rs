@@ -1154,13 +1154,17 @@ impl Integrator {
                 }
             }
             self.retract(sys, &mut x);
-            let stats = in_pool(|| self.minimize(sys, &mut x, &x0, Mode::Static, settings))?;
+            let stats = in_pool(self.threaded(), || {
+                self.minimize(sys, &mut x, &x0, Mode::Static, settings)
+            })?;
             state.x = x;
             state.v.iter_mut().for_each(|v| *v = Vector3::zeros());
             return Ok(stats);
         }
         self.predict(sys, state, &mut x, &target, guess, h);
-        let stats = in_pool(|| self.minimize(sys, &mut x, &x0, Mode::Dynamic { h }, settings))?;
+        let stats = in_pool(self.threaded(), || {
+            self.minimize(sys, &mut x, &x0, Mode::Dynamic { h }, settings)
+        })?;
         for i in 0..self.n {
             state.v[i] = (x[i] - x0[i]) / h;
         }
@@ -1224,10 +1228,18 @@ impl Integrator {
         let x0 = state.x.clone();
         let mut x = x0.clone();
         self.retract(sys, &mut x);
-        let stats = in_pool(|| self.minimize(sys, &mut x, &x0, Mode::Static, settings))?;
+        let stats = in_pool(self.threaded(), || {
+            self.minimize(sys, &mut x, &x0, Mode::Static, settings)
+        })?;
         state.x = x;
         state.v.iter_mut().for_each(|v| *v = Vector3::zeros());
         Ok(stats)
+    }
+
+    /// Whether this system has work for more than one thread (an assembly tree with a split,
+    /// or a split factorization): its steps then run on a pool worker ([`in_pool`]).
+    fn threaded(&self) -> bool {
+        self.split.is_some() || matches!(self.parts, partition::Part::Split { .. })
     }
 
     /// Newton (exact Hessians first for [`Method::Newton`] in dynamic steps, projected ones
@@ -1468,14 +1480,16 @@ impl Integrator {
     }
 }
 
-/// Runs `f` on a worker of the current thread pool when called from outside it (at once
-/// otherwise). Why: a fork–join started outside the pool injects its job and waits for a
-/// worker to wake, and then for a second one to steal the other half; between two
+/// Runs `f` on a worker of the current thread pool when `threaded` and called from outside
+/// it (at once otherwise). Why: a fork–join started outside the pool injects its job and
+/// waits for a worker to wake, and then for a second one to steal the other half; between two
 /// assemblies (a factorization apart) the workers fall asleep. Measured on this 2-core
 /// machine, a 1 ms job split in two with 10 ms between calls: 1.01 ms from outside the pool
-/// (serial: 0.97 ms), 0.59 ms from a worker.
-pub(crate) fn in_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
-    if rayon::current_thread_index().is_some() || rayon::current_num_threads() < 2 {
+/// (serial: 0.97 ms), 0.59 ms from a worker. The move itself waits for a worker too, once a
+/// step: systems with nothing to run concurrently stay on the caller (a 25-vertex sheet's
+/// steps, 70 µs each, took 40× as long when moved).
+pub(crate) fn in_pool<R: Send>(threaded: bool, f: impl FnOnce() -> R + Send) -> R {
+    if !threaded || rayon::current_thread_index().is_some() || rayon::current_num_threads() < 2 {
         f()
     } else {
         rayon::scope(|_| f())

@@ -267,7 +267,9 @@ impl Integrator {
         set: ContactSet<'_>,
     ) -> Result<(StepStats, ContactStats), StepError> {
         // On a worker of the thread pool, for the assembly's fork–joins (see `in_pool`).
-        super::in_pool(|| self.step_contacts_here(sys, state, pinned_to, h, settings, set))
+        super::in_pool(self.threaded(), || {
+            self.step_contacts_here(sys, state, pinned_to, h, settings, set)
+        })
     }
 
     fn step_contacts_here(
