@@ -45,8 +45,8 @@ use rayon::prelude::*;
 use std::cell::RefCell;
 use std::time::Instant;
 
-/// The line search's element energies are computed in parallel from this many elements, in
-/// chunks of at least this many: below it the fork–join costs more than it saves.
+/// The line search's element energies are computed in parallel from this many elements:
+/// below it the fork–join costs more than it saves.
 const PARALLEL_MIN: usize = 256;
 
 thread_local! {
@@ -129,6 +129,42 @@ struct Analysis {
 }
 
 impl Analysis {
+    /// One numeric Cholesky factorization of the permuted lower triangle gathered from
+    /// `values` (the whole pattern's) into `lower_values`, its factor into `l_values`.
+    fn factor(
+        &self,
+        values: &[f64],
+        lower_values: &mut [f64],
+        l_values: &mut [f64],
+        mem: &mut MemBuffer,
+    ) -> Result<(), faer::linalg::solvers::LltError> {
+        for (v, &k) in lower_values.iter_mut().zip(&self.lower_src) {
+            *v = values[k];
+        }
+        let dofs = self.fwd.len();
+        // SAFETY: `new` checked this pattern with `new_checked`; it never changes after.
+        let sym = unsafe {
+            SymbolicSparseColMatRef::new_unchecked(
+                dofs,
+                dofs,
+                &self.lower_ptr,
+                None,
+                &self.lower_row,
+            )
+        };
+        self.symbolic
+            .factorize_numeric_llt(
+                l_values,
+                SparseColMatRef::new(sym, lower_values),
+                Side::Lower,
+                Default::default(),
+                Par::Seq,
+                MemStack::new(mem),
+                Default::default(),
+            )
+            .map(|_| ())
+    }
+
     /// The analysis of the pattern (`col_ptr`, `row_idx`: both triangles, 3×3 blocks) with
     /// its vertices eliminated in the order `order` (`order[i]`: the vertex eliminated i-th).
     /// `order` may list some of the vertices only: the analysis is then of the submatrix of
@@ -226,18 +262,14 @@ pub struct Integrator {
     /// Per element, per (a, b) stencil pair: the block's slot in column block v[b].
     slots: Vec<u32>,
     diag_slot: Vec<u32>,
-    /// The symbolic factorization of the permuted lower triangle (its own ordering is the
-    /// identity: `perm` is applied by gathering).
-    symbolic: SymbolicCholesky<usize>,
+    /// The fill-reducing permutation (DOF `analysis.fwd[i]` is unknown i of the factor), the
+    /// lower triangle of P A Pᵀ with each entry's index in `values`, and its symbolic
+    /// factorization (whose own ordering is the identity: the permutation is applied by
+    /// gathering).
+    analysis: Analysis,
     l_values: Vec<f64>,
-    /// The lower triangle of P A Pᵀ: column pointers, rows, values, and for each entry its
-    /// index in `values`.
-    lower_ptr: Vec<usize>,
-    lower_row: Vec<usize>,
+    /// The gathered lower triangle's values.
     lower_values: Vec<f64>,
-    lower_src: Vec<usize>,
-    /// The fill-reducing permutation: DOF `perm[i]` is unknown i of the factor.
-    perm: Vec<usize>,
     /// A right-hand side in the factor's order.
     permuted: Vec<f64>,
     /// Scratch of the own one-right-hand-side solve (`integrator/solve.rs`), as long as the
@@ -251,7 +283,6 @@ pub struct Integrator {
     x_trial: Vec<Vector3<f64>>,
     /// The second-order correction's trial positions.
     x_soc: Vec<Vector3<f64>>,
-
     /// The rods' second-order correction (their segments and its scratch).
     correction: correction::LengthCorrection,
     local: Local,
@@ -488,59 +519,49 @@ impl Integrator {
             &col_ptr,
             &row_idx,
         )?;
-        if sys.layout.len() == n && analysis.flops >= DISSECTION_MIN_FLOPS {
-            let mut at = vec![Vector3::zeros(); n_vertices];
+        // Where the free vertices sit (empty without a layout): for dissection and the split.
+        let mut at = Vec::new();
+        if sys.layout.len() == n {
+            at = vec![Vector3::zeros(); n_vertices];
             for (v, &f) in free_of.iter().enumerate() {
                 if let Some(p) = at.get_mut(f as usize) {
                     *p = sys.layout[v];
                 }
             }
-            if let Some(nd) = order::nested_dissection(&nbrs, &at) {
-                let other = Analysis::new(&nd, &col_ptr, &row_idx)?;
-                if other.flops < DISSECTION_GAIN * analysis.flops {
-                    analysis = other;
-                }
+        }
+        if !at.is_empty()
+            && analysis.flops >= DISSECTION_MIN_FLOPS
+            && let Some(nd) = order::nested_dissection(&nbrs, &at)
+        {
+            let other = Analysis::new(&nd, &col_ptr, &row_idx)?;
+            if other.flops < DISSECTION_GAIN * analysis.flops {
+                analysis = other;
             }
         }
         // Two halves factored at once (`split.rs`) where the factor is large enough to pay
         // for the separator's dense work; not with rigid groups (their nodes couple every
         // member).
         let split = if sys.rigid.is_empty() && analysis.flops >= SPLIT_MIN_FLOPS && !whole_only {
-            let mut at = Vec::new();
-            if sys.layout.len() == n {
-                at = vec![Vector3::zeros(); n_vertices];
-                for (v, &f) in free_of.iter().enumerate() {
-                    if let Some(p) = at.get_mut(f as usize) {
-                        *p = sys.layout[v];
-                    }
-                }
-            }
             let order: Vec<usize> = analysis.fwd.iter().step_by(3).map(|&d| d / 3).collect();
             split::Split::new(&nbrs, &order, &col_ptr, &row_idx, &at)?
                 .filter(|sp| sp.flops < SPLIT_GAIN * analysis.flops)
         } else {
             None
         };
-        let Analysis {
-            fwd,
-            lower_ptr,
-            lower_row,
-            lower_src,
-            symbolic,
-            ..
-        } = analysis;
+
         // Each factorization is sequential (`Par::Seq` throughout): faer's parallel
         // supernodal Cholesky changes its reduction order with the thread count (measured: a
         // 48×48 cloth differed in the last bits between 1 and 2 threads), and results must be
         // bit-identical at any count; at 128² it was also slower (31 → 44 s for two frames'
         // factorizations). Threads go to assembly and to the split's two halves.
         let par = Par::Seq;
+        let symbolic = &analysis.symbolic;
         let scratch = symbolic
             .factorize_numeric_llt_scratch::<f64>(par, Default::default())
             .or(symbolic.solve_in_place_scratch::<f64>(1, par));
         if let Some(limit) = max_bytes {
             let need = (symbolic.len_val() as u64)
-                .saturating_add(3 * lower_row.len() as u64 + 3 * dofs as u64)
+                .saturating_add(3 * analysis.lower_row.len() as u64 + 3 * dofs as u64)
                 .saturating_mul(8)
                 .saturating_add(scratch.size_bytes() as u64)
                 .saturating_add((row_idx.len() as u64).saturating_mul(16));
@@ -581,13 +602,9 @@ impl Integrator {
             row_idx,
             slots,
             diag_slot,
-            symbolic,
             l_values,
-            lower_values: vec![0.0; whole * lower_row.len()],
-            lower_ptr,
-            lower_row,
-            lower_src,
-            perm: fwd,
+            lower_values: vec![0.0; whole * analysis.lower_row.len()],
+            analysis,
             permuted: vec![0.0; dofs],
             narrow_tmp,
             mem: MemBuffer::new(if whole == 1 {
@@ -942,7 +959,7 @@ impl Integrator {
         ok
     }
 
-    /// One numeric Cholesky factorization of `values` into `l_values`.
+    /// One numeric Cholesky factorization of `values`: into `l_values`, or the split's halves.
     fn factor_once(&mut self) -> Result<(), faer::linalg::solvers::LltError> {
         if let Some(sp) = self.split.as_mut() {
             return if sp.factor(&self.values) {
@@ -951,31 +968,12 @@ impl Integrator {
                 Err(faer::linalg::solvers::LltError::NonPositivePivot { index: 0 })
             };
         }
-        let dofs = 3 * self.n_free;
-        for (v, &k) in self.lower_values.iter_mut().zip(&self.lower_src) {
-            *v = self.values[k];
-        }
-        // SAFETY: `build` checked this pattern with `new_checked`; it never changes after.
-        let sym = unsafe {
-            SymbolicSparseColMatRef::new_unchecked(
-                dofs,
-                dofs,
-                &self.lower_ptr,
-                None,
-                &self.lower_row,
-            )
-        };
-        self.symbolic
-            .factorize_numeric_llt(
-                &mut self.l_values,
-                SparseColMatRef::new(sym, &self.lower_values),
-                Side::Lower,
-                Default::default(),
-                Par::Seq,
-                MemStack::new(&mut self.mem),
-                Default::default(),
-            )
-            .map(|_| ())
+        self.analysis.factor(
+            &self.values,
+            &mut self.lower_values,
+            &mut self.l_values,
+            &mut self.mem,
+        )
     }
 
     /// Adds `kappa` · mᵢ/h² to every free vertex's diagonal block.
@@ -1036,22 +1034,24 @@ impl Integrator {
             return;
         }
         let dofs = 3 * self.n_free;
-        for (p, &i) in self.permuted.iter_mut().zip(&self.perm) {
+        for (p, &i) in self.permuted.iter_mut().zip(&self.analysis.fwd) {
             *p = b[i];
         }
-        match (self.symbolic.raw(), self.narrow_tmp.as_mut()) {
+        match (self.analysis.symbolic.raw(), self.narrow_tmp.as_mut()) {
             // Hair-like factors (every supernode narrow): see `solve.rs` for why not faer's.
             (SymbolicCholeskyRaw::Supernodal(sn), Some(tmp)) => {
                 solve::supernodal_solve(sn, &self.l_values, &mut self.permuted, tmp);
             }
             _ => {
-                let llt =
-                    faer::sparse::linalg::cholesky::LltRef::new(&self.symbolic, &self.l_values);
+                let llt = faer::sparse::linalg::cholesky::LltRef::new(
+                    &self.analysis.symbolic,
+                    &self.l_values,
+                );
                 let rhs = MatMut::from_column_major_slice_mut(&mut self.permuted, dofs, 1);
                 llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut self.mem));
             }
         }
-        for (&p, &i) in self.permuted.iter().zip(&self.perm) {
+        for (&p, &i) in self.permuted.iter().zip(&self.analysis.fwd) {
             b[i] = p;
         }
         stats.solve_seconds += t.elapsed().as_secs_f64();

@@ -277,8 +277,11 @@ pub(super) mod tests {
         let plain = Integrator::new(&sys).unwrap();
         sys.layout = state.x.clone();
         let cut = Integrator::new(&sys).unwrap();
-        let flops = |i: &Integrator| supernodal_flops(i.symbolic.raw());
-        assert!(plain.perm != cut.perm, "the layout changed nothing");
+        let flops = |i: &Integrator| supernodal_flops(i.analysis.symbolic.raw());
+        assert!(
+            plain.analysis.fwd != cut.analysis.fwd,
+            "the layout changed nothing"
+        );
         assert!(
             flops(&cut) < DISSECTION_GAIN * flops(&plain),
             "dissection {:.3e} flops, minimum degree {:.3e}",
@@ -287,7 +290,7 @@ pub(super) mod tests {
         );
         assert!(flops(&plain) >= DISSECTION_MIN_FLOPS);
         // The last unknowns are the top separator: vertices of one straight band.
-        let last: Vec<usize> = cut.perm[cut.perm.len() - 3 * k..]
+        let last: Vec<usize> = cut.analysis.fwd[cut.analysis.fwd.len() - 3 * k..]
             .iter()
             .step_by(3)
             .map(|&d| d / 3)

@@ -243,7 +243,7 @@ mod tests {
         let (e48, at48) = grid(48);
         // A layout with a NaN is ignored: the split falls back to vertex indices.
         at[3].x = f64::NAN;
-        let _ = partition(e, at.len(), &at);
+        assert_eq!(partition(e, at.len(), &at).leaves(), 1);
         let with_nan: Vec<_> = at48.iter().map(|p| p * f64::NAN).collect();
         let by_index = partition(e48.clone(), at48.len(), &[]);
         let nan = partition(e48, at48.len(), &with_nan);

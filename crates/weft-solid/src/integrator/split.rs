@@ -29,17 +29,15 @@ use faer::linalg::cholesky::llt::factor::{LltRegularization, cholesky_in_place};
 use faer::reborrow::ReborrowMut;
 use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
 use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use faer::{Accum, MatMut, MatRef, Par, Side as FaerSide};
+use faer::{Accum, MatMut, MatRef, Par};
 use nalgebra::Vector3;
 
 /// One half, bordered by the separator.
 struct Half {
-    /// Unknown i of this half's factor is DOF `fwd[i]`; the separator's DOFs are the last
-    /// `3 · n_sep`, in the separator's order.
-    fwd: Vec<usize>,
     /// DOFs before the separator's.
     own: usize,
+    /// Unknown i of this half's factor is DOF `analysis.fwd[i]`; the separator's DOFs are the
+    /// last `3 · n_sep`, in the separator's order.
     analysis: Analysis,
     lower_values: Vec<f64>,
     l_values: Vec<f64>,
@@ -71,7 +69,6 @@ impl Half {
         let dofs = analysis.fwd.len();
         let sep = dofs - 3 * own_vertices;
         Ok(Half {
-            fwd: analysis.fwd.clone(),
             own: 3 * own_vertices,
             lower_values: vec![0.0; analysis.lower_row.len()],
             l_values: vec![0.0; analysis.symbolic.len_val()],
@@ -83,41 +80,16 @@ impl Half {
         })
     }
 
-    fn supernodal(&self) -> &SymbolicSupernodalCholesky<usize> {
-        match self.analysis.symbolic.raw() {
-            SymbolicCholeskyRaw::Supernodal(sn) => sn,
-            SymbolicCholeskyRaw::Simplicial(_) => unreachable!("checked in Half::new"),
-        }
-    }
-
     /// Factors this half's bordered matrix from `values`, and copies the factor's trailing
     /// block into `tail`: whether it was positive definite.
     fn factor(&mut self, values: &[f64]) -> bool {
-        for (v, &k) in self.lower_values.iter_mut().zip(&self.analysis.lower_src) {
-            *v = values[k];
-        }
-        let dofs = self.fwd.len();
-        // SAFETY: `Analysis::new` checked this pattern with `new_checked`.
-        let sym = unsafe {
-            SymbolicSparseColMatRef::new_unchecked(
-                dofs,
-                dofs,
-                &self.analysis.lower_ptr,
-                None,
-                &self.analysis.lower_row,
-            )
-        };
         let ok = self
             .analysis
-            .symbolic
-            .factorize_numeric_llt(
+            .factor(
+                values,
+                &mut self.lower_values,
                 &mut self.l_values,
-                SparseColMatRef::new(sym, &self.lower_values),
-                FaerSide::Lower,
-                Default::default(),
-                Par::Seq,
-                MemStack::new(&mut self.mem),
-                Default::default(),
+                &mut self.mem,
             )
             .is_ok();
         if ok {
@@ -128,11 +100,11 @@ impl Half {
 
     /// `tail` ← the factor's rows and columns from `own` on.
     fn copy_tail(&mut self) {
-        let n = self.fwd.len() - self.own;
+        let n = self.analysis.fwd.len() - self.own;
         let own = self.own;
         let mut tail = std::mem::take(&mut self.tail);
         tail.iter_mut().for_each(|v| *v = 0.0);
-        let sn = self.supernodal();
+        let sn = supernodal(&self.analysis);
         let (begin, end) = (sn.supernode_begin(), sn.supernode_end());
         let (val_ptr, row_ptr, rows) =
             (sn.col_ptr_for_val(), sn.col_ptr_for_row_idx(), sn.row_idx());
@@ -156,6 +128,14 @@ impl Half {
             }
         }
         self.tail = tail;
+    }
+}
+
+/// The supernodal symbolic factorization of a half (checked in `Half::new`).
+fn supernodal(analysis: &Analysis) -> &SymbolicSupernodalCholesky<usize> {
+    match analysis.symbolic.raw() {
+        SymbolicCholeskyRaw::Supernodal(sn) => sn,
+        SymbolicCholeskyRaw::Simplicial(_) => unreachable!("checked in Half::new"),
     }
 }
 
@@ -334,15 +314,11 @@ impl Split {
         let m = self.sep.len();
         // Forward through each half with the separator's entries zero.
         for h in &mut self.halves {
-            for (x, &d) in h.x[..h.own].iter_mut().zip(&h.fwd) {
+            for (x, &d) in h.x[..h.own].iter_mut().zip(&h.analysis.fwd) {
                 *x = b[d];
             }
             h.x[h.own..].iter_mut().for_each(|v| *v = 0.0);
-            let sn = match h.analysis.symbolic.raw() {
-                SymbolicCholeskyRaw::Supernodal(sn) => sn,
-                SymbolicCholeskyRaw::Simplicial(_) => unreachable!("checked in Half::new"),
-            };
-            solve::forward(sn, &h.l_values, &mut h.x, &mut h.tmp);
+            solve::forward(supernodal(&h.analysis), &h.l_values, &mut h.x, &mut h.tmp);
         }
         // The separator: S̃ x_S = b_S + L_A t_A + L_B t_B (L lower-triangular, dense).
         for (x, &d) in self.xs.iter_mut().zip(&self.sep) {
@@ -366,12 +342,8 @@ impl Split {
                 }
                 h.x[h.own + j] = acc;
             }
-            let sn = match h.analysis.symbolic.raw() {
-                SymbolicCholeskyRaw::Supernodal(sn) => sn,
-                SymbolicCholeskyRaw::Simplicial(_) => unreachable!("checked in Half::new"),
-            };
-            solve::backward(sn, &h.l_values, &mut h.x, &mut h.tmp);
-            for (&x, &d) in h.x[..h.own].iter().zip(&h.fwd) {
+            solve::backward(supernodal(&h.analysis), &h.l_values, &mut h.x, &mut h.tmp);
+            for (&x, &d) in h.x[..h.own].iter().zip(&h.analysis.fwd) {
                 b[d] = x;
             }
         }
