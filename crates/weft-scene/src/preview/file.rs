@@ -64,6 +64,7 @@ pub fn encode_png(image: &Image, path: &Path, out: &mut dyn Write) -> Result<(),
     let mut encoder = png::Encoder::new(out, image.width, image.height);
     encoder.set_color(png::ColorType::Rgb);
     encoder.set_depth(png::BitDepth::Eight);
+    encoder.set_compression(png::Compression::Fast);
     let mut writer = encoder.write_header().map_err(png_err)?;
     writer.write_image_data(&image.rgb).map_err(png_err)?;
     writer.finish().map_err(png_err)
