@@ -106,10 +106,12 @@ const DISSECTION_MIN_FLOPS: f64 = 5e8;
 
 /// Factorizations from this many flops are tried split in two halves factored concurrently
 /// (`split.rs`), and kept when the larger half and the separator cost less than
-/// [`SPLIT_GAIN`] of the whole. Measured on the hanging cloth (2 threads, time per
-/// factorization, whole → split): 24² (2.9e7 flops) 0.89 → 0.89 ms, with solves twice as
-/// long; 32² 2.77 → 2.15 ms; 48² 10.8 → 6.7 ms; 64² 16.7 → 13.3 ms; 128² 267 → 165 ms.
-const SPLIT_MIN_FLOPS: f64 = 5e7;
+/// [`SPLIT_GAIN`] of the whole. Measured on the hanging cloth (2 threads, fastest of 20
+/// factorizations of one matrix, whole → split): 16² (5.9e6 flops) 0.43 → 0.36 ms, but its
+/// runs no faster (the split's solves take twice as long); 20² (1.4e7) 0.89 → 0.62 ms; 24²
+/// (2.9e7) 1.65 → 1.04 ms (`graphs/cloth_hang.json`: 0.85 of the time, farm-bench A/B);
+/// 32² 4.1 → 2.4 ms; 48² 10.8 → 6.7 ms; 64² 16.7 → 13.3 ms; 128² 267 → 165 ms.
+const SPLIT_MIN_FLOPS: f64 = 1e7;
 const SPLIT_GAIN: f64 = 0.75;
 
 /// Nested dissection replaces minimum degree only with at most this fraction of its flops.

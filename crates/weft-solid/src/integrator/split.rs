@@ -129,6 +129,36 @@ impl Half {
         }
         self.tail = tail;
     }
+
+    /// x ← F⁻¹ [b_own; 0]: this half's own DOFs of `b`, the separator's zero (`x`'s tail is
+    /// then t = −L⁻¹ Wᵀ y).
+    fn forward(&mut self, b: &[f64]) {
+        for (x, &d) in self.x[..self.own].iter_mut().zip(&self.analysis.fwd) {
+            *x = b[d];
+        }
+        self.x[self.own..].iter_mut().for_each(|v| *v = 0.0);
+        solve::forward(
+            supernodal(&self.analysis),
+            &self.l_values,
+            &mut self.x,
+            &mut self.tmp,
+        );
+    }
+
+    /// x ← F⁻ᵀ [y; Lᵀ x_S], given the separator's solution `xs`.
+    fn backward(&mut self, xs: &[f64]) {
+        let m = xs.len();
+        for (j, x) in self.x[self.own..].iter_mut().enumerate() {
+            let column = &self.tail[j * m..(j + 1) * m];
+            *x = (j..m).fold(0.0, |acc, i| acc + column[i] * xs[i]);
+        }
+        solve::backward(
+            supernodal(&self.analysis),
+            &self.l_values,
+            &mut self.x,
+            &mut self.tmp,
+        );
+    }
 }
 
 /// The supernodal symbolic factorization of a half (checked in `Half::new`).
@@ -309,17 +339,16 @@ impl Split {
         .is_ok()
     }
 
-    /// b ← K⁻¹ b with the last factorization (`b` in the whole system's DOF order).
+    /// b ← K⁻¹ b with the last factorization (`b` in the whole system's DOF order). The
+    /// halves' triangular solves run concurrently, as their factorizations do (at 24² they
+    /// are 80 % of the solve: one after the other, the split's solve took 1.8× the whole
+    /// factor's).
     pub(super) fn solve_in_place(&mut self, b: &mut [f64]) {
         let m = self.sep.len();
         // Forward through each half with the separator's entries zero.
-        for h in &mut self.halves {
-            for (x, &d) in h.x[..h.own].iter_mut().zip(&h.analysis.fwd) {
-                *x = b[d];
-            }
-            h.x[h.own..].iter_mut().for_each(|v| *v = 0.0);
-            solve::forward(supernodal(&h.analysis), &h.l_values, &mut h.x, &mut h.tmp);
-        }
+        let [ha, hb] = &mut self.halves;
+        let rhs: &[f64] = b;
+        rayon::join(|| ha.forward(rhs), || hb.forward(rhs));
         // The separator: S̃ x_S = b_S + L_A t_A + L_B t_B (L lower-triangular, dense).
         for (x, &d) in self.xs.iter_mut().zip(&self.sep) {
             *x = b[d];
@@ -334,15 +363,10 @@ impl Split {
         }
         dense_solve(&self.schur, m, &mut self.xs);
         // Backward through each half from [y; Lᵀ x_S].
-        for h in &mut self.halves {
-            for j in 0..m {
-                let mut acc = 0.0;
-                for i in j..m {
-                    acc += h.tail[i + j * m] * self.xs[i];
-                }
-                h.x[h.own + j] = acc;
-            }
-            solve::backward(supernodal(&h.analysis), &h.l_values, &mut h.x, &mut h.tmp);
+        let [ha, hb] = &mut self.halves;
+        let xs: &[f64] = &self.xs;
+        rayon::join(|| ha.backward(xs), || hb.backward(xs));
+        for h in &self.halves {
             for (&x, &d) in h.x[..h.own].iter().zip(&h.analysis.fwd) {
                 b[d] = x;
             }
