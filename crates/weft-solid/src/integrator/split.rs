@@ -26,10 +26,14 @@
 use super::{Analysis, StepError, solve};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::{LltRegularization, cholesky_in_place};
+use faer::linalg::matmul::matmul;
+use faer::linalg::triangular_solve::{
+    solve_lower_triangular_in_place, solve_upper_triangular_in_place,
+};
 use faer::reborrow::ReborrowMut;
 use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
-use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
-use faer::{Accum, MatMut, MatRef, Par};
+use faer::sparse::linalg::cholesky::supernodal::{SupernodalLltRef, SymbolicSupernodalCholesky};
+use faer::{Accum, Conj, MatMut, MatRef, Par};
 use nalgebra::Vector3;
 
 /// One half, bordered by the separator.
@@ -41,10 +45,14 @@ struct Half {
     analysis: Analysis,
     lower_values: Vec<f64>,
     l_values: Vec<f64>,
+    /// The factorization's scratch, and faer's solve's.
     mem: MemBuffer,
-    /// The solve's vector in this half's order, and the supernodal solve's scratch.
+    /// The solve's vector in this half's order.
     x: Vec<f64>,
-    tmp: Vec<f64>,
+    /// The own solve's scratch where every supernode is narrow (hair-like), else `None`:
+    /// faer's solve, as for the whole system (`solve.rs`; on cloth_drape's contact solves
+    /// 1.73 → 1.40 s).
+    narrow_tmp: Option<Vec<f64>>,
     /// The trailing block L of the factor (dense, column-major, lower).
     tail: Vec<f64>,
 }
@@ -62,10 +70,11 @@ impl Half {
                 "expected a supernodal analysis".into(),
             ));
         };
-        let tmp = vec![0.0; longest_pattern(sn)];
+        let narrow_tmp = solve::narrow(sn).map(|m| vec![0.0; m]);
         let scratch = analysis
             .symbolic
-            .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default());
+            .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default())
+            .or(analysis.symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
         let dofs = analysis.fwd.len();
         let sep = dofs - 3 * own_vertices;
         Ok(Half {
@@ -74,7 +83,7 @@ impl Half {
             l_values: vec![0.0; analysis.symbolic.len_val()],
             mem: MemBuffer::new(scratch),
             x: vec![0.0; dofs],
-            tmp,
+            narrow_tmp,
             tail: vec![0.0; sep * sep],
             analysis,
         })
@@ -137,27 +146,37 @@ impl Half {
             *x = b[d];
         }
         self.x[self.own..].iter_mut().for_each(|v| *v = 0.0);
-        solve::forward(
-            supernodal(&self.analysis),
-            &self.l_values,
-            &mut self.x,
-            &mut self.tmp,
-        );
+        let sn = supernodal(&self.analysis);
+        let n = self.x.len();
+        match self.narrow_tmp.as_mut() {
+            Some(tmp) => solve::forward(sn, &self.l_values, &mut self.x, tmp),
+            None => SupernodalLltRef::new(sn, &self.l_values).l_solve_with_conj(
+                Conj::No,
+                MatMut::from_column_major_slice_mut(&mut self.x, n, 1),
+                Par::Seq,
+                MemStack::new(&mut self.mem),
+            ),
+        }
     }
 
     /// x ← F⁻ᵀ [y; Lᵀ x_S], given the separator's solution `xs`.
     fn backward(&mut self, xs: &[f64]) {
         let m = xs.len();
-        for (j, x) in self.x[self.own..].iter_mut().enumerate() {
-            let column = &self.tail[j * m..(j + 1) * m];
-            *x = (j..m).fold(0.0, |acc, i| acc + column[i] * xs[i]);
+        let l = MatRef::from_column_major_slice(&self.tail, m, m);
+        let xs = MatRef::from_column_major_slice(xs, m, 1);
+        let top = MatMut::from_column_major_slice_mut(&mut self.x[self.own..], m, 1);
+        matmul(top, Accum::Replace, l.transpose(), xs, 1.0, Par::Seq);
+        let sn = supernodal(&self.analysis);
+        let n = self.x.len();
+        match self.narrow_tmp.as_mut() {
+            Some(tmp) => solve::backward(sn, &self.l_values, &mut self.x, tmp),
+            None => SupernodalLltRef::new(sn, &self.l_values).l_transpose_solve_with_conj(
+                Conj::No,
+                MatMut::from_column_major_slice_mut(&mut self.x, n, 1),
+                Par::Seq,
+                MemStack::new(&mut self.mem),
+            ),
         }
-        solve::backward(
-            supernodal(&self.analysis),
-            &self.l_values,
-            &mut self.x,
-            &mut self.tmp,
-        );
     }
 }
 
@@ -167,19 +186,6 @@ fn supernodal(analysis: &Analysis) -> &SymbolicSupernodalCholesky<usize> {
         SymbolicCholeskyRaw::Supernodal(sn) => sn,
         SymbolicCholeskyRaw::Simplicial(_) => unreachable!("checked in Half::new"),
     }
-}
-
-/// The longest pattern below a supernode's diagonal block (the solve's scratch).
-fn longest_pattern(sn: &SymbolicSupernodalCholesky<usize>) -> usize {
-    let (begin, end) = (sn.supernode_begin(), sn.supernode_end());
-    let val_ptr = sn.col_ptr_for_val();
-    (0..begin.len())
-        .map(|s| {
-            let w = end[s] - begin[s];
-            (val_ptr[s + 1] - val_ptr[s]) / w - w
-        })
-        .max()
-        .unwrap_or(0)
 }
 
 /// The split factorization (see the module's doc).
@@ -353,13 +359,13 @@ impl Split {
         for (x, &d) in self.xs.iter_mut().zip(&self.sep) {
             *x = b[d];
         }
+        // faer's dense kernels: at 24² (m = 144) these were a quarter of the split's solve as
+        // plain loops.
         for h in &self.halves {
-            let t = &h.x[h.own..];
-            for (j, &tj) in t.iter().enumerate() {
-                for i in j..m {
-                    self.xs[i] += h.tail[i + j * m] * tj;
-                }
-            }
+            let l = MatRef::from_column_major_slice(&h.tail, m, m);
+            let t = MatRef::from_column_major_slice(&h.x[h.own..], m, 1);
+            let xs = MatMut::from_column_major_slice_mut(&mut self.xs, m, 1);
+            matmul(xs, Accum::Add, l, t, 1.0, Par::Seq);
         }
         dense_solve(&self.schur, m, &mut self.xs);
         // Backward through each half from [y; Lᵀ x_S].
@@ -377,22 +383,13 @@ impl Split {
     }
 }
 
-/// x ← (L Lᵀ)⁻¹ x for a dense lower-triangular L (column-major, m × m).
+/// x ← (L Lᵀ)⁻¹ x for a dense lower-triangular L (column-major, m × m; only its lower
+/// triangle is read).
 fn dense_solve(l: &[f64], m: usize, x: &mut [f64]) {
-    for j in 0..m {
-        let xj = x[j] / l[j + j * m];
-        x[j] = xj;
-        for i in j + 1..m {
-            x[i] -= l[i + j * m] * xj;
-        }
-    }
-    for j in (0..m).rev() {
-        let mut acc = x[j];
-        for i in j + 1..m {
-            acc -= l[i + j * m] * x[i];
-        }
-        x[j] = acc / l[j + j * m];
-    }
+    let l = MatRef::from_column_major_slice(l, m, m);
+    let mut x = MatMut::from_column_major_slice_mut(x, m, 1);
+    solve_lower_triangular_in_place(l, x.rb_mut(), Par::Seq);
+    solve_upper_triangular_in_place(l.transpose(), x, Par::Seq);
 }
 
 #[cfg(test)]
