@@ -118,7 +118,7 @@ const DISSECTION_MIN_FLOPS: f64 = 5e8;
 /// (`split.rs`), and kept when the larger half and the separator cost less than
 /// [`SPLIT_GAIN`] of the whole. Measured on the hanging cloth (2 threads, fastest of 20
 /// factorizations of one matrix, whole → split): 16² (5.9e6 flops) 0.43 → 0.36 ms, but its
-/// runs no faster (the split's solves take twice as long); 20² (1.4e7) 0.89 → 0.62 ms; 24²
+/// runs no faster (solver 0.25 → 0.28 s for 24 frames); 20² (1.4e7) 0.89 → 0.62 ms; 24²
 /// (2.9e7) 1.65 → 1.04 ms (`graphs/cloth_hang.json`: 0.85 of the time, farm-bench A/B);
 /// 32² 4.1 → 2.4 ms; 48² 10.8 → 6.7 ms; 64² 16.7 → 13.3 ms; 128² 267 → 165 ms.
 const SPLIT_MIN_FLOPS: f64 = 1e7;

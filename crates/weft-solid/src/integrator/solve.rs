@@ -16,13 +16,7 @@
 //! listed from `row_idx[col_ptr_for_row_idx[s]]`. Every operation runs in a fixed order on
 //! one thread: the same bits at any thread count.
 
-use faer::linalg::matmul::matmul;
-use faer::linalg::triangular_solve::{
-    solve_lower_triangular_in_place, solve_upper_triangular_in_place,
-};
-use faer::reborrow::{Reborrow, ReborrowMut};
 use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
-use faer::{Accum, MatMut, MatRef, Par};
 
 /// Whether plain loops beat faer's dense kernels on every supernode of the factor (none has
 /// 4 columns or more with 24 rows or more below them), and the longest pattern below a
@@ -40,12 +34,6 @@ pub(super) fn narrow(symbolic: &SymbolicSupernodalCholesky<usize>) -> Option<usi
         longest = longest.max(m);
     }
     Some(longest)
-}
-
-/// A supernode whose solve goes to faer's dense kernels: the complement of [`narrow`]'s test
-/// (so factors that are narrow everywhere, hair's, never take it).
-fn wide(w: usize, m: usize) -> bool {
-    w >= 4 && m >= 24
 }
 
 /// x ← (L Lᵀ)⁻¹ x for the supernodal factor `values` of `symbolic`; `tmp` is scratch of at
@@ -95,18 +83,6 @@ pub(super) fn forward(
         let (start, w, lda, vals, pattern) = block(s);
         let m = lda - w;
         let t = &mut tmp[..m];
-        if wide(w, m) {
-            // faer's dense kernels (see `narrow`): x_top ← L_top⁻¹ x_top, t ← L_bot x_top.
-            let l = MatRef::from_column_major_slice_with_stride(vals, lda, w, lda);
-            let mut top = MatMut::from_column_major_slice_mut(&mut x[start..start + w], w, 1);
-            solve_lower_triangular_in_place(l.subrows(0, w), top.rb_mut(), Par::Seq);
-            let tm = MatMut::from_column_major_slice_mut(t, m, 1);
-            matmul(tm, Accum::Replace, l.subrows(w, m), top.rb(), 1.0, Par::Seq);
-            for (&r, &t) in pattern.iter().zip(t.iter()) {
-                x[r] -= t;
-            }
-            continue;
-        }
         t.iter_mut().for_each(|v| *v = 0.0);
         for j in 0..w {
             let col = &vals[j * lda..(j + 1) * lda];
@@ -142,22 +118,6 @@ pub(super) fn backward(
         let t = &mut tmp[..m];
         for (t, &r) in t.iter_mut().zip(pattern) {
             *t = x[r];
-        }
-        if wide(w, m) {
-            // x_top ← L_top⁻ᵀ (x_top − L_botᵀ t).
-            let l = MatRef::from_column_major_slice_with_stride(vals, lda, w, lda);
-            let mut top = MatMut::from_column_major_slice_mut(&mut x[start..start + w], w, 1);
-            let tm = MatRef::from_column_major_slice(t, m, 1);
-            matmul(
-                top.rb_mut(),
-                Accum::Add,
-                l.subrows(w, m).transpose(),
-                tm,
-                -1.0,
-                Par::Seq,
-            );
-            solve_upper_triangular_in_place(l.subrows(0, w).transpose(), top, Par::Seq);
-            continue;
         }
         for j in (0..w).rev() {
             let col = &vals[j * lda..(j + 1) * lda];

@@ -146,17 +146,7 @@ impl Half {
             *x = b[d];
         }
         self.x[self.own..].iter_mut().for_each(|v| *v = 0.0);
-        let sn = supernodal(&self.analysis);
-        let n = self.x.len();
-        match self.narrow_tmp.as_mut() {
-            Some(tmp) => solve::forward(sn, &self.l_values, &mut self.x, tmp),
-            None => SupernodalLltRef::new(sn, &self.l_values).l_solve_with_conj(
-                Conj::No,
-                MatMut::from_column_major_slice_mut(&mut self.x, n, 1),
-                Par::Seq,
-                MemStack::new(&mut self.mem),
-            ),
-        }
+        self.triangular_solve(false);
     }
 
     /// x ← F⁻ᵀ [y; Lᵀ x_S], given the separator's solution `xs`.
@@ -166,16 +156,27 @@ impl Half {
         let xs = MatRef::from_column_major_slice(xs, m, 1);
         let top = MatMut::from_column_major_slice_mut(&mut self.x[self.own..], m, 1);
         matmul(top, Accum::Replace, l.transpose(), xs, 1.0, Par::Seq);
+        self.triangular_solve(true);
+    }
+
+    /// x ← F⁻¹ x, or F⁻ᵀ x when `transposed`: the own solve where every supernode is narrow,
+    /// else faer's.
+    fn triangular_solve(&mut self, transposed: bool) {
         let sn = supernodal(&self.analysis);
         let n = self.x.len();
-        match self.narrow_tmp.as_mut() {
-            Some(tmp) => solve::backward(sn, &self.l_values, &mut self.x, tmp),
-            None => SupernodalLltRef::new(sn, &self.l_values).l_transpose_solve_with_conj(
-                Conj::No,
-                MatMut::from_column_major_slice_mut(&mut self.x, n, 1),
-                Par::Seq,
-                MemStack::new(&mut self.mem),
-            ),
+        match (self.narrow_tmp.as_mut(), transposed) {
+            (Some(tmp), false) => solve::forward(sn, &self.l_values, &mut self.x, tmp),
+            (Some(tmp), true) => solve::backward(sn, &self.l_values, &mut self.x, tmp),
+            (None, _) => {
+                let llt = SupernodalLltRef::new(sn, &self.l_values);
+                let x = MatMut::from_column_major_slice_mut(&mut self.x, n, 1);
+                let stack = MemStack::new(&mut self.mem);
+                if transposed {
+                    llt.l_transpose_solve_with_conj(Conj::No, x, Par::Seq, stack);
+                } else {
+                    llt.l_solve_with_conj(Conj::No, x, Par::Seq, stack);
+                }
+            }
         }
     }
 }
