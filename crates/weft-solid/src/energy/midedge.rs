@@ -21,7 +21,7 @@
 //! Gradient Σₖ (Bφ)ₖ ∇θₖ; Hessian Σₖₗ Bₖₗ ∇θₖ∇θₗᵀ (PSD, the projection) + Σₖ (Bφ)ₖ ∇²θₖ.
 
 use super::hinge::wrap_offset;
-use super::{Element, Local, dihedral_angle, dihedral_gradient};
+use super::{Element, Local, dihedral_angle, dihedral_angle_gradient, dihedral_gradient};
 use nalgebra::{Matrix3, Vector3};
 use num_dual::Dual64;
 
@@ -67,6 +67,9 @@ pub struct MidedgeBend {
     rest: [f64; 3],
     /// The condensed stiffness matrix B [J] (rows and columns of free edges are zero).
     b: [[f64; 3]; 3],
+    /// A square root of B (B = L Lᵀ, from its eigendecomposition; B is PSD), so the
+    /// Gauss–Newton Hessian is (GL)(GL)ᵀ: symmetric by construction, half of it computed.
+    l: [[f64; 3]; 3],
     /// Its energy at unit curvature in a cylinder, doubled: Ā (1 − ν) D/2 [J·m].
     unit: f64,
     /// Bend angle dropoff, if any ([`super::Dropoff`]).
@@ -137,12 +140,17 @@ impl MidedgeBend {
                 b[k][l] = 0.5 * (bm[(k, l)] + bm[(l, k)]);
             }
         }
+        let eig = nalgebra::SymmetricEigen::new(Matrix3::from_fn(|k, l| b[k][l]));
+        let root =
+            eig.eigenvectors * Matrix3::from_diagonal(&eig.eigenvalues.map(|e| e.max(0.0).sqrt()));
+        let l = std::array::from_fn(|k| std::array::from_fn(|m| root[(k, m)]));
         MidedgeBend {
             v,
             len,
             wing,
             rest: rest_angle,
             b,
+            l,
             // A cylinder of curvature κ has ‖dev II‖² = κ²/2: E = ½ κ² · Ā (1 − ν) D/2.
             unit: 0.5 * (rest[1] - rest[0]).cross(&(rest[2] - rest[0])).norm() * (1.0 - nu) * d
                 / 2.0,
@@ -218,15 +226,16 @@ impl Element for MidedgeBend {
     #[allow(clippy::needless_range_loop)] // stencil index arithmetic
     fn eval(&self, x: &[Vector3<f64>], project: bool, out: &mut Local) {
         let dofs = 3 * self.len as usize;
-        let phi = self.angles(x);
-        let (f, e) = self.quad(&phi);
-        // ∇θₖ spread over the stencil's DOFs.
+        // φₖ and ∇θₖ (spread over the stencil's DOFs) from one pass over each hinge.
+        let mut phi = [0.0; 3];
         let mut g = [[0.0; 18]; 3];
         let mut xs12 = [[0.0; 12]; 3];
         for k in 0..3 {
             if let Some(h) = self.hinge(k) {
                 xs12[k] = self.gather12(x, h);
-                let gk = dihedral_gradient(&xs12[k]);
+                let (theta, gk) = dihedral_angle_gradient(&xs12[k]);
+                let d = theta - self.rest[k];
+                phi[k] = d - wrap_offset(d);
                 for (a, &i) in h.iter().enumerate() {
                     for r in 0..3 {
                         g[k][3 * i + r] = gk[3 * a + r];
@@ -234,21 +243,25 @@ impl Element for MidedgeBend {
                 }
             }
         }
+        let (f, e) = self.quad(&phi);
         out.dofs = dofs;
         out.energy = e;
         for i in 0..dofs {
             out.grad[i] = (0..3).map(|k| f[k] * g[k][i]).sum();
         }
-        // Gauss–Newton part Σₖₗ Bₖₗ ∇θₖ∇θₗᵀ = Σₖ ∇θₖ (B∇θ)ₖᵀ.
-        let mut w = [[0.0; 18]; 3];
-        for k in 0..3 {
-            for i in 0..dofs {
-                w[k][i] = (0..3).map(|l| self.b[k][l] * g[l][i]).sum();
+        // Gauss–Newton part Σₖₗ Bₖₗ ∇θₖ∇θₗᵀ = V Vᵀ with V = G L (G's columns the ∇θₖ):
+        // the lower half, mirrored.
+        let mut v = [[0.0; 3]; 18];
+        for (i, vi) in v.iter_mut().enumerate().take(dofs) {
+            for (m, vim) in vi.iter_mut().enumerate() {
+                *vim = (0..3).map(|k| g[k][i] * self.l[k][m]).sum();
             }
         }
         for c in 0..dofs {
-            for r in 0..dofs {
-                out.hess[c][r] = (0..3).map(|k| g[k][r] * w[k][c]).sum();
+            for r in c..dofs {
+                let h = v[c][0] * v[r][0] + v[c][1] * v[r][1] + v[c][2] * v[r][2];
+                out.hess[c][r] = h;
+                out.hess[r][c] = h;
             }
         }
         if !project {
@@ -271,8 +284,8 @@ impl Element for MidedgeBend {
                     }
                 }
             }
+            out.symmetrize();
         }
-        out.symmetrize();
         if let Some(dr) = self.dropoff {
             dr.apply(out);
         }

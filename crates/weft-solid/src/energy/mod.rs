@@ -12,7 +12,7 @@ mod shell_clamp;
 mod spring;
 
 pub use dropoff::Dropoff;
-pub use hinge::{Hinge, dihedral_angle, dihedral_gradient};
+pub use hinge::{Hinge, dihedral_angle, dihedral_angle_gradient, dihedral_gradient};
 pub use membrane::{Membrane, MembraneMaterial};
 pub use midedge::MidedgeBend;
 pub use rod::{RodBend, RodClamp, RodStretch};
