@@ -919,7 +919,13 @@ impl Integrator {
 
     /// The largest displacement of a vertex by the step `d` (over the nodes): a group's
     /// rotation node is in radians, so its members' displacements count instead.
+    /// NaN when any entry of `d` is not finite: `f64::max` skips a NaN, so without the check a
+    /// direction with non-finite entries would pass as a short one (and end a contact step
+    /// "converged" with non-finite positions, reported only at the next step).
     fn step_size(&self, d: &[f64]) -> f64 {
+        if d.iter().any(|v| !v.is_finite()) {
+            return f64::NAN;
+        }
         if self.groups.is_empty() {
             return d.iter().fold(0.0f64, |m, d| m.max(d.abs()));
         }

@@ -646,6 +646,16 @@ mod tests {
         (sys, s, integ, settings)
     }
 
+    /// A direction with a NaN entry has a NaN size (not its finite entries' largest), so the
+    /// steps that measure it report it instead of taking it.
+    #[test]
+    fn a_non_finite_direction_is_not_a_short_one() {
+        let (_, _, integ, _) = one_vertex();
+        assert_eq!(integ.step_size(&[1e-3, 0.0, -2e-3]), 2e-3);
+        assert!(integ.step_size(&[1e-3, f64::NAN, 0.0]).is_nan());
+        assert!(integ.step_size(&[f64::INFINITY, 0.0, 0.0]).is_nan());
+    }
+
     /// One 1 kg vertex on a plane through the origin tilted θ about z, friction μ, gravity −y,
     /// h = 0.01 s for 1 s: (displacement along the slope, velocity along it, largest speed
     /// off the plane).
