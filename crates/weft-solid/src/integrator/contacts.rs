@@ -98,8 +98,8 @@ struct Active<'a> {
     /// (free index, weight) of the vertices that move.
     free: [(usize, f64); CONTACT_VERTICES],
     count: usize,
-    /// `base[p][q]`: the value index of entry (3 f_p, 3 f_q) less its column's start, so
-    /// entry (a, b) of that block is at `col_ptr[3 f_q + b] + base[p][q] + a`.
+    /// `base[p][q]`: the slot of block (f_p, f_q) in f_q's column, so entry (a, b) of that
+    /// block is at [`super::block_entry`]`(col_ptr, f_q, base[p][q], a, b)`.
     base: [[usize; CONTACT_VERTICES]; CONTACT_VERTICES],
     /// Σ |wⱼ| mⱼ: the point's mass for its damping.
     mass: f64,
@@ -148,11 +148,14 @@ pub struct ContactStats {
 }
 
 impl Integrator {
-    /// The value index of entry (3 fa, 3 fb) less column 3 fb's start, when the pattern
-    /// holds the block of free vertices fa and fb (rows of a column are sorted).
+    /// The slot of the block of free vertices fa (row) and fb (column) in fb's column, when
+    /// the pattern holds it (rows of a column are sorted).
     fn block_base(&self, fa: usize, fb: usize) -> Option<usize> {
         let (lo, hi) = (self.col_ptr[3 * fb], self.col_ptr[3 * fb + 1]);
-        self.row_idx[lo..hi].binary_search(&(3 * fa)).ok()
+        self.row_idx[lo..hi]
+            .binary_search(&(3 * fa))
+            .ok()
+            .map(|k| k / 3)
     }
 
     /// The blocks `contacts` need beyond the elements' (free index pairs, sorted, lower
@@ -244,9 +247,9 @@ impl Integrator {
         for (p, &(_, wp)) in a.free().iter().enumerate() {
             for (q, &(fq, wq)) in a.free().iter().enumerate() {
                 for bb in 0..3 {
-                    let col = self.col_ptr[3 * fq + bb] + a.base[p][q];
                     for aa in 0..3 {
-                        self.values[col + aa] += scale * wp * wq * m[(aa, bb)];
+                        let k = super::block_entry(&self.col_ptr, fq, a.base[p][q], aa, bb);
+                        self.values[k] += scale * wp * wq * m[(aa, bb)];
                     }
                 }
             }
@@ -327,7 +330,7 @@ impl Integrator {
         let identity = Matrix3::identity();
         // The value slot of row a, column b of free vertex f's diagonal block.
         let block = |s: &Self, f: usize, a: usize, b: usize| {
-            s.col_ptr[3 * f + b] + 3 * s.diag_slot[f] as usize + a
+            super::block_entry(&s.col_ptr, f, s.diag_slot[f] as usize, a, b)
         };
         // The last ADMM round's (primal, dual) residuals, for the error when it does not end.
         let mut last_admm = (f64::NAN, f64::NAN);

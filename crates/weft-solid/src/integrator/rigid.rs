@@ -121,8 +121,8 @@ impl Groups {
 }
 
 impl Integrator {
-    /// The index in `values` of block (row node `r`, column node `c`)'s entry (0, 0): its
-    /// entry (rr, cc) is at `col_ptr[3c + cc] + slot + rr` with the returned slot offset.
+    /// The slot of block (row node `r`, column node `c`) in column node c's blocks: its entry
+    /// (rr, cc) is at [`super::block_entry`]`(col_ptr, c, slot, rr, cc)`.
     fn block_slot(&self, r: u32, c: u32) -> Option<usize> {
         let c = c as usize;
         let start = self.col_ptr[3 * c];
@@ -134,7 +134,7 @@ impl Integrator {
             match row.cmp(&r) {
                 std::cmp::Ordering::Less => lo = mid + 1,
                 std::cmp::Ordering::Greater => hi = mid,
-                std::cmp::Ordering::Equal => return Some(3 * mid),
+                std::cmp::Ordering::Equal => return Some(mid),
             }
         }
         None
@@ -148,9 +148,8 @@ impl Integrator {
         };
         let c = c as usize;
         for cc in 0..3 {
-            let base = self.col_ptr[3 * c + cc] + s;
             for rr in 0..3 {
-                self.values[base + rr] += b[(rr, cc)];
+                self.values[super::block_entry(&self.col_ptr, c, s, rr, cc)] += b[(rr, cc)];
             }
         }
     }
@@ -243,7 +242,7 @@ impl Integrator {
                 continue;
             };
             let diag = (0..3)
-                .map(|k| self.values[self.col_ptr[3 * r as usize + k] + s + k].abs())
+                .map(|k| self.values[super::block_entry(&self.col_ptr, r as usize, s, k, k)].abs())
                 .fold(0.0f64, f64::max);
             m += 1e-12 * diag * Matrix3::identity();
             self.add_block(r, r, &m);

@@ -175,9 +175,9 @@ impl Integrator {
             };
             for c in 0..3 {
                 self.grad[3 * f + c] += mu_n * grad[c];
-                let base = self.col_ptr[3 * f + c] + 3 * self.diag_slot[f] as usize;
                 for r in 0..3 {
-                    self.values[base + r] += mu_n * hess[(r, c)];
+                    let k = super::block_entry(&self.col_ptr, f, self.diag_slot[f] as usize, r, c);
+                    self.values[k] += mu_n * hess[(r, c)];
                 }
             }
         }
@@ -197,9 +197,8 @@ impl Integrator {
                 }
                 let mut b = Matrix3::zeros();
                 for cc in 0..3 {
-                    let base = self.col_ptr[3 * fb + cc] + 3 * s;
                     for rr in 0..3 {
-                        b[(rr, cc)] = self.values[base + rr];
+                        b[(rr, cc)] = self.values[super::block_entry(&self.col_ptr, fb, s, rr, cc)];
                     }
                 }
                 if let Some(pa) = pa {
@@ -209,9 +208,8 @@ impl Integrator {
                     b *= pb;
                 }
                 for cc in 0..3 {
-                    let base = self.col_ptr[3 * fb + cc] + 3 * s;
                     for rr in 0..3 {
-                        self.values[base + rr] = b[(rr, cc)];
+                        self.values[super::block_entry(&self.col_ptr, fb, s, rr, cc)] = b[(rr, cc)];
                     }
                 }
             }
@@ -225,9 +223,9 @@ impl Integrator {
             let normal = self.slide_scale[k] * (Matrix3::identity() - p);
             for c in 0..3 {
                 self.grad[3 * f + c] = g[c];
-                let base = self.col_ptr[3 * f + c] + 3 * self.diag_slot[f] as usize;
                 for r in 0..3 {
-                    self.values[base + r] += normal[(r, c)];
+                    let k = super::block_entry(&self.col_ptr, f, self.diag_slot[f] as usize, r, c);
+                    self.values[k] += normal[(r, c)];
                 }
             }
         }

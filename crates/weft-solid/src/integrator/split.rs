@@ -281,7 +281,7 @@ impl Split {
             for k in col_ptr[d]..col_ptr[d + 1] {
                 let i = pos[row_idx[k]];
                 if i != usize::MAX && i >= j {
-                    kss.push((i, j, k));
+                    kss.push((i, j, super::value_index(col_ptr, k, d)));
                 }
             }
         }
@@ -396,6 +396,7 @@ fn dense_solve(l: &[f64], m: usize, x: &mut [f64]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::integrator::value_index;
     use nalgebra::{DMatrix, DVector};
 
     /// A k × k grid whose vertices couple their two-ring (a shell's pattern), its positions,
@@ -448,7 +449,7 @@ mod tests {
         for c in 0..col_ptr.len() - 1 {
             for k in col_ptr[c]..col_ptr[c + 1] {
                 let r = row_idx[k];
-                v[k] = if r == c {
+                v[value_index(col_ptr, k, c)] = if r == c {
                     40.0 + (c % 7) as f64
                 } else {
                     -0.3 * (((r + c) % 5) as f64 / 5.0 + 0.1)
@@ -463,7 +464,7 @@ mod tests {
         let mut m = DMatrix::zeros(n, n);
         for c in 0..n {
             for k in col_ptr[c]..col_ptr[c + 1] {
-                m[(row_idx[k], c)] = v[k];
+                m[(row_idx[k], c)] = v[value_index(col_ptr, k, c)];
             }
         }
         m
@@ -498,6 +499,7 @@ mod tests {
                 let mut bad = values.clone();
                 let diag = (col_ptr[v]..col_ptr[v + 1])
                     .find(|&j| row_idx[j] == v)
+                    .map(|j| value_index(&col_ptr, j, v))
                     .unwrap();
                 bad[diag] = -5.0;
                 assert!(!sp.factor(&bad), "DOF {v}");
