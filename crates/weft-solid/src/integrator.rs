@@ -785,11 +785,9 @@ impl Integrator {
             if let (Mode::Dynamic { h }, Some(d)) = (mode, sys.drag(i)) {
                 // Gradient D(v − u), Hessian D/h: a full 3×3 diagonal block.
                 g += d.matrix * ((x[i] - x0[i]) / h - d.flow);
-                for cc in 0..3 {
-                    for rr in 0..3 {
-                        let k = block_entry(&self.col_ptr, f, self.diag_slot[f] as usize, rr, cc);
-                        self.values[k] += d.matrix[(rr, cc)] / h;
-                    }
+                let block = self.block_mut(f, self.diag_slot[f] as usize);
+                for (v, m) in block.iter_mut().zip(d.matrix.as_slice()) {
+                    *v += m / h;
                 }
             }
             for c in 0..3 {
@@ -911,6 +909,24 @@ impl Integrator {
                 self.values[k] += mu;
             }
         }
+    }
+
+    /// The slot of block (row vertex `r`, column vertex `c`, free indices or group nodes)
+    /// among column vertex c's blocks, when the pattern holds it (a column's rows are
+    /// sorted, three to a block).
+    fn block_slot(&self, r: usize, c: usize) -> Option<usize> {
+        let (lo, hi) = (self.col_ptr[3 * c], self.col_ptr[3 * c + 1]);
+        self.row_idx[lo..hi]
+            .binary_search(&(3 * r))
+            .ok()
+            .map(|k| k / 3)
+    }
+
+    /// The nine values of block (slot `s`, column vertex `c`), column-major (as nalgebra's
+    /// `Matrix3::as_slice`).
+    fn block_mut(&mut self, c: usize, s: usize) -> &mut [f64] {
+        let k = block_entry(&self.col_ptr, c, s, 0, 0);
+        &mut self.values[k..k + 9]
     }
 
     /// The index in `values` of DOF c's diagonal entry of free vertex f.

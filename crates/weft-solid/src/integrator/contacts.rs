@@ -99,7 +99,7 @@ struct Active<'a> {
     free: [(usize, f64); CONTACT_VERTICES],
     count: usize,
     /// `base[p][q]`: the slot of block (f_p, f_q) in f_q's column, so entry (a, b) of that
-    /// block is at [`super::block_entry`]`(col_ptr, f_q, base[p][q], a, b)`.
+    /// block is entry 3b + a of `block_mut(f_q, base[p][q])`.
     base: [[usize; CONTACT_VERTICES]; CONTACT_VERTICES],
     /// Σ |wⱼ| mⱼ: the point's mass for its damping.
     mass: f64,
@@ -148,16 +148,6 @@ pub struct ContactStats {
 }
 
 impl Integrator {
-    /// The slot of the block of free vertices fa (row) and fb (column) in fb's column, when
-    /// the pattern holds it (rows of a column are sorted).
-    fn block_base(&self, fa: usize, fb: usize) -> Option<usize> {
-        let (lo, hi) = (self.col_ptr[3 * fb], self.col_ptr[3 * fb + 1]);
-        self.row_idx[lo..hi]
-            .binary_search(&(3 * fa))
-            .ok()
-            .map(|k| k / 3)
-    }
-
     /// The blocks `contacts` need beyond the elements' (free index pairs, sorted, lower
     /// first): pairs of a contact's moving vertices that share no element.
     fn contact_blocks(&self, contacts: &[Contact]) -> Vec<(u32, u32)> {
@@ -174,7 +164,7 @@ impl Integrator {
             for (p, &a) in free.iter().enumerate() {
                 for &b in &free[p + 1..] {
                     let key = (a.min(b), a.max(b));
-                    let element = self.block_base(a as usize, b as usize).is_some()
+                    let element = self.block_slot(a as usize, b as usize).is_some()
                         && self.extra.binary_search(&key).is_err();
                     if !element && a != b {
                         need.push(key);
@@ -227,7 +217,7 @@ impl Integrator {
             for p in 0..a.count {
                 for q in 0..a.count {
                     a.base[p][q] = self
-                        .block_base(a.free[p].0, a.free[q].0)
+                        .block_slot(a.free[p].0, a.free[q].0)
                         .ok_or_else(|| {
                             StepError::Factorization(format!(
                                 "contact {k}: its vertices {:?} share no element, so the system has no block for them",
@@ -246,11 +236,13 @@ impl Integrator {
     fn add_contact_blocks(&mut self, a: &Active<'_>, scale: f64, m: &Matrix3<f64>) {
         for (p, &(_, wp)) in a.free().iter().enumerate() {
             for (q, &(fq, wq)) in a.free().iter().enumerate() {
-                for bb in 0..3 {
-                    for aa in 0..3 {
-                        let k = super::block_entry(&self.col_ptr, fq, a.base[p][q], aa, bb);
-                        self.values[k] += scale * wp * wq * m[(aa, bb)];
-                    }
+                let f = scale * wp * wq;
+                for (v, m) in self
+                    .block_mut(fq, a.base[p][q])
+                    .iter_mut()
+                    .zip(m.as_slice())
+                {
+                    *v += f * m;
                 }
             }
         }

@@ -121,36 +121,14 @@ impl Groups {
 }
 
 impl Integrator {
-    /// The slot of block (row node `r`, column node `c`) in column node c's blocks: its entry
-    /// (rr, cc) is at [`super::block_entry`]`(col_ptr, c, slot, rr, cc)`.
-    fn block_slot(&self, r: u32, c: u32) -> Option<usize> {
-        let c = c as usize;
-        let start = self.col_ptr[3 * c];
-        let slots = (self.col_ptr[3 * c + 1] - start) / 3;
-        let (mut lo, mut hi) = (0usize, slots);
-        while lo < hi {
-            let mid = (lo + hi) / 2;
-            let row = (self.row_idx[start + 3 * mid] / 3) as u32;
-            match row.cmp(&r) {
-                std::cmp::Ordering::Less => lo = mid + 1,
-                std::cmp::Ordering::Greater => hi = mid,
-                std::cmp::Ordering::Equal => return Some(mid),
-            }
-        }
-        None
-    }
-
     /// Adds `b` to block (row node `r`, column node `c`) (in the pattern by construction).
     pub(super) fn add_block(&mut self, r: u32, c: u32, b: &Matrix3<f64>) {
-        let Some(s) = self.block_slot(r, c) else {
+        let Some(s) = self.block_slot(r as usize, c as usize) else {
             debug_assert!(false, "block ({r}, {c}) is not in the pattern");
             return;
         };
-        let c = c as usize;
-        for cc in 0..3 {
-            for rr in 0..3 {
-                self.values[super::block_entry(&self.col_ptr, c, s, rr, cc)] += b[(rr, cc)];
-            }
+        for (v, b) in self.block_mut(c as usize, s).iter_mut().zip(b.as_slice()) {
+            *v += b;
         }
     }
 
@@ -238,11 +216,13 @@ impl Integrator {
                 project_psd(&mut m);
             }
             let r = self.groups.node[g] + 1;
-            let Some(s) = self.block_slot(r, r) else {
+            let Some(s) = self.block_slot(r as usize, r as usize) else {
                 continue;
             };
-            let diag = (0..3)
-                .map(|k| self.values[super::block_entry(&self.col_ptr, r as usize, s, k, k)].abs())
+            let block = self.block_mut(r as usize, s);
+            let diag = [0, 4, 8]
+                .map(|k| block[k].abs())
+                .into_iter()
                 .fold(0.0f64, f64::max);
             m += 1e-12 * diag * Matrix3::identity();
             self.add_block(r, r, &m);

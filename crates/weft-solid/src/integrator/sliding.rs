@@ -175,10 +175,10 @@ impl Integrator {
             };
             for c in 0..3 {
                 self.grad[3 * f + c] += mu_n * grad[c];
-                for r in 0..3 {
-                    let k = super::block_entry(&self.col_ptr, f, self.diag_slot[f] as usize, r, c);
-                    self.values[k] += mu_n * hess[(r, c)];
-                }
+            }
+            let block = self.block_mut(f, self.diag_slot[f] as usize);
+            for (v, h) in block.iter_mut().zip(hess.as_slice()) {
+                *v += mu_n * h;
             }
         }
         let proj = |s: &Self, f: usize| {
@@ -195,23 +195,15 @@ impl Integrator {
                 if pa.is_none() && pb.is_none() {
                     continue;
                 }
-                let mut b = Matrix3::zeros();
-                for cc in 0..3 {
-                    for rr in 0..3 {
-                        b[(rr, cc)] = self.values[super::block_entry(&self.col_ptr, fb, s, rr, cc)];
-                    }
-                }
+                let block = self.block_mut(fb, s);
+                let mut b = Matrix3::from_column_slice(block);
                 if let Some(pa) = pa {
                     b = pa * b;
                 }
                 if let Some(pb) = pb {
                     b *= pb;
                 }
-                for cc in 0..3 {
-                    for rr in 0..3 {
-                        self.values[super::block_entry(&self.col_ptr, fb, s, rr, cc)] = b[(rr, cc)];
-                    }
-                }
+                block.copy_from_slice(b.as_slice());
             }
         }
         for (k, sl) in sys.sliders.iter().enumerate() {
@@ -223,10 +215,10 @@ impl Integrator {
             let normal = self.slide_scale[k] * (Matrix3::identity() - p);
             for c in 0..3 {
                 self.grad[3 * f + c] = g[c];
-                for r in 0..3 {
-                    let k = super::block_entry(&self.col_ptr, f, self.diag_slot[f] as usize, r, c);
-                    self.values[k] += normal[(r, c)];
-                }
+            }
+            let block = self.block_mut(f, self.diag_slot[f] as usize);
+            for (v, n) in block.iter_mut().zip(normal.as_slice()) {
+                *v += n;
             }
         }
     }
