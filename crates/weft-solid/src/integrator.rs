@@ -23,6 +23,7 @@ mod contacts;
 mod correction;
 mod order;
 mod partition;
+mod pool;
 mod rigid;
 mod sliding;
 mod solve;
@@ -41,6 +42,7 @@ use faer::sparse::linalg::cholesky::{
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 use nalgebra::{Matrix3, Vector3};
+use pool::in_pool;
 use rayon::prelude::*;
 use std::cell::RefCell;
 use std::time::Instant;
@@ -1552,22 +1554,6 @@ impl Integrator {
             converged: true,
             ..Default::default()
         })
-    }
-}
-
-/// Runs `f` on a worker of the current thread pool when `threaded` and called from outside
-/// it (at once otherwise). Why: a fork–join started outside the pool injects its job and
-/// waits for a worker to wake, and then for a second one to steal the other half; between two
-/// assemblies (a factorization apart) the workers fall asleep. Measured on this 2-core
-/// machine, a 1 ms job split in two with 10 ms between calls: 1.01 ms from outside the pool
-/// (serial: 0.97 ms), 0.59 ms from a worker. The move itself waits for a worker too, once a
-/// step: systems with nothing to run concurrently stay on the caller (a 25-vertex sheet's
-/// steps, 70 µs each, took 40× as long when moved).
-pub(crate) fn in_pool<R: Send>(threaded: bool, f: impl FnOnce() -> R + Send) -> R {
-    if !threaded || rayon::current_thread_index().is_some() || rayon::current_num_threads() < 2 {
-        f()
-    } else {
-        rayon::scope(|_| f())
     }
 }
 
