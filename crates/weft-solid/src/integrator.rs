@@ -336,6 +336,9 @@ pub struct Integrator {
     split: Option<split::Split>,
     /// Never split (tests).
     whole_only: bool,
+    /// Most low-rank columns a contact step adds to a kept factor for contacts that rejoin
+    /// its split (`contacts.rs`, `Joined`; 0: refactorize at every rejoin, as tests compare).
+    joined_max: usize,
     /// Per element scratch (energies, gradient magnitudes), summed in element order so every
     /// total is bit-identical at any thread count.
     per_element: RefCell<Vec<f64>>,
@@ -405,9 +408,10 @@ impl Integrator {
         if extra == self.extra {
             return Ok(false);
         }
-        let stop = self.stop.take();
+        let (stop, joined_max) = (self.stop.take(), self.joined_max);
         *self = Self::build(sys, self.max_bytes, extra, self.whole_only)?;
         self.stop = stop;
+        self.joined_max = joined_max;
         Ok(true)
     }
 
@@ -680,6 +684,7 @@ impl Integrator {
             per_element: RefCell::new(vec![0.0; slot_offset.len()]),
             split,
             whole_only,
+            joined_max: contacts::JOINED_MAX,
             slot_offset,
             parts,
         })
