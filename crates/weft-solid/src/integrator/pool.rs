@@ -16,8 +16,10 @@ use std::time::{Duration, Instant};
 /// every few hundred microseconds (an assembly's tree, the split factorization's halves, its
 /// two triangular solves), and a worker that fell asleep between them is woken by a system
 /// call and a context switch each time. Measured (farm-bench, paired runs, wall A/B): the
-/// hanging cloth 24² 0.93, 32² 0.97, 64² 0.94, the cloth drape 0.96, for 3–5 % more CPU time;
-/// the same bits.
+/// hanging cloth 24² 0.96 on a quiet machine (0.93 on a noisy one), 32² 0.97, 64² 0.94, the
+/// cloth drape 0.96, hair on the head 0.99; the same bits. The helper leaves after 500 µs
+/// without work: spinning through a contact step's sequential stretches cost hair on the
+/// head 11 % more CPU time for nothing.
 pub(crate) fn in_pool<R: Send>(threaded: bool, f: impl FnOnce() -> R + Send) -> R {
     if !threaded || rayon::current_thread_index().is_some() || rayon::current_num_threads() < 2 {
         return f();
@@ -42,15 +44,14 @@ impl Drop for SetOnDrop<'_> {
     }
 }
 
-/// How long [`keep_warm`] spins without finding work before it only looks every
-/// [`NAP`]: a step's sequential stretches (a contact step's projections, its exact checks)
-/// should not hold a core for nothing.
+/// How long [`keep_warm`] waits for work before it leaves the worker to rayon's own sleep: a
+/// step's long sequential stretches (a contact step's projections, its exact checks) should
+/// not hold a core for nothing.
 const SPIN: Duration = Duration::from_micros(500);
-const NAP: Duration = Duration::from_micros(50);
 
 /// Runs the pool's pending jobs (the other halves of the step's joins) until `done`, on a
 /// worker other than `home` (the one running the step: there it returns at once, since the
-/// step must go on). Spins between jobs for [`SPIN`], then naps. Which thread runs a job
+/// step must go on), spinning between jobs for at most [`SPIN`]. Which thread runs a job
 /// never changes what it computes: the results stay bit-identical at any thread count.
 fn keep_warm(home: Option<usize>, done: &AtomicBool) {
     if rayon::current_thread_index() == home {
@@ -63,7 +64,7 @@ fn keep_warm(home: Option<usize>, done: &AtomicBool) {
         } else if idle.elapsed() < SPIN {
             std::hint::spin_loop();
         } else {
-            std::thread::sleep(NAP);
+            return;
         }
     }
 }
