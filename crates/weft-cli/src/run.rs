@@ -500,7 +500,7 @@ fn stats_text(g: &Graph, seconds: f64) -> String {
             };
             let n = frames.len() as f64;
             s += &format!(
-                "  └ {} frames: {:.1} steps/frame, {:.1} Newton iterations/frame (max {} in a step), {} retries, largest residual {:.2e} m/s; assembly {:.0} ms, factorization {:.0} ms, solves {:.0} ms\n",
+                "  └ {} frames: {:.1} steps/frame, {:.1} Newton iterations/frame (max {} in a step), {} retries, largest residual {:.2e} m/s; assembly {:.0} ms, {} factorizations {:.0} ms, solves {:.0} ms\n",
                 frames.len(),
                 sum("steps") / n,
                 sum("newton_iterations") / n,
@@ -508,6 +508,7 @@ fn stats_text(g: &Graph, seconds: f64) -> String {
                 sum("retries"),
                 max("max_residual"),
                 sum("assembly_seconds") * 1e3,
+                sum("factorizations"),
                 sum("factor_seconds") * 1e3,
                 sum("solve_seconds") * 1e3,
             );

@@ -95,6 +95,9 @@ pub struct FrameStats {
     pub assembly_seconds: f64,
     /// Seconds factorizing.
     pub factor_seconds: f64,
+    /// Numeric factorizations, summed over steps (failed inertia tries and a contact
+    /// step's refactorizations included).
+    pub factorizations: usize,
     /// Seconds in triangular solves.
     pub solve_seconds: f64,
     /// Factorizations retried with added inertia (the exact Hessian was not positive
@@ -257,6 +260,7 @@ impl SolidStepper {
                     .max(s.residuals.last().copied().unwrap_or(0.0));
                 stats.assembly_seconds += s.assembly_seconds;
                 stats.factor_seconds += s.factor_seconds;
+                stats.factorizations += s.factorizations;
                 stats.solve_seconds += s.solve_seconds;
                 stats.inertia_shifts += s.shifted;
                 stats.projected_iterations += s.projected;

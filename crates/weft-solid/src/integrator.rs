@@ -996,6 +996,7 @@ impl Integrator {
         self.shift_diagonal(shift);
         let mut tries = 0;
         loop {
+            stats.factorizations += 1;
             match self.factor_once() {
                 Ok(()) => break,
                 Err(e) if tries >= 8 => {
@@ -1025,6 +1026,7 @@ impl Integrator {
         let t = Instant::now();
         let ok = self.factor_once().is_ok();
         stats.factor_seconds += t.elapsed().as_secs_f64();
+        stats.factorizations += 1;
         ok
     }
 

@@ -63,6 +63,9 @@ pub struct StepStats {
     pub assembly_seconds: f64,
     /// Seconds in numeric factorization.
     pub factor_seconds: f64,
+    /// Numeric factorizations, the failed ones included (inertia tries, regularization,
+    /// a contact step's refactorizations).
+    pub factorizations: usize,
     /// Seconds in triangular solves.
     pub solve_seconds: f64,
     /// Factorizations retried with added inertia because the exact Hessian was not
@@ -88,6 +91,7 @@ impl StepStats {
         self.halvings += earlier.halvings;
         self.assembly_seconds += earlier.assembly_seconds;
         self.factor_seconds += earlier.factor_seconds;
+        self.factorizations += earlier.factorizations;
         self.solve_seconds += earlier.solve_seconds;
         self.shifted += earlier.shifted;
         self.projected += earlier.projected;

@@ -116,5 +116,6 @@ pub(crate) fn contact_stats_json(c: &weft_sim::ContactFrameStats) -> serde_json:
         "cut_backs": c.cut_backs,
         "started_inside": c.started_inside,
         "pattern_rebuilds": c.pattern_rebuilds,
+        "low_rank_joins": c.low_rank_joins,
     })
 }

@@ -53,6 +53,9 @@ pub struct ContactFrameStats {
     /// Steps whose solves rebuilt the system's pattern for contacts between solids (blocks
     /// between vertices that share no element), counted per solve.
     pub pattern_rebuilds: usize,
+    /// ADMM rounds whose contacts rejoining the split were added to the kept factor as a
+    /// low-rank correction, not refactorized.
+    pub low_rank_joins: usize,
 }
 
 /// The contact machinery of a compiled scene that has contact pairs: the detector and the
@@ -155,6 +158,7 @@ impl Contacts {
             cs.admm_iterations += contact.admm_iterations;
             cs.admm_seconds += contact.admm_seconds;
             cs.pattern_rebuilds += usize::from(contact.pattern_rebuilt);
+            cs.low_rank_joins += contact.low_rank_joins;
             let t = Instant::now();
             let checked = self.detector.check(
                 setup,

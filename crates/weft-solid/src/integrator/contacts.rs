@@ -132,8 +132,12 @@ pub struct ContactSet<'a> {
 pub struct ContactStats {
     /// ADMM iterations, summed over Newton iterations.
     pub admm_iterations: usize,
-    /// Refactorizations made to rebalance ρ between ADMM's residuals.
+    /// Refactorizations made to rebalance ρ between ADMM's residuals, or for contacts that
+    /// rejoined the split once the low-rank correction was full.
     pub refactorizations: usize,
+    /// Rounds whose rejoining contacts were added to the kept factor as a low-rank
+    /// correction (`Joined`) instead of a refactorization.
+    pub low_rank_joins: usize,
     /// Whether the pattern was rebuilt for blocks between vertices that share no element
     /// (contacts between solids) this step.
     pub pattern_rebuilt: bool,
@@ -522,7 +526,9 @@ impl Integrator {
                             h,
                             &mut stats,
                         );
-                    if !low_rank {
+                    if low_rank {
+                        cstats.low_rank_joins += 1;
+                    } else {
                         cstats.refactorizations += 1;
                         self.factor(&mut stats, 0.0)?;
                         joined_lr.clear();
