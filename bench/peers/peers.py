@@ -285,7 +285,8 @@ class Square:
                 {"substeps": 1, "integrator": "bdf2"}, {"substeps": 2, "integrator": "bdf2"},
                 {"substeps": 4, "integrator": "bdf2"},
                 {"substeps": 2, "method": "linearized"}, {"substeps": 4, "method": "linearized"},
-                {"substeps": 16, "method": "linearized"}, {"substeps": 64, "method": "linearized"}]
+                {"substeps": 8, "method": "linearized"}, {"substeps": 16, "method": "linearized"},
+                {"substeps": 64, "method": "linearized"}]
 
     def setup(self, n):
         verts, faces = grid(n, n, self.SIDE, self.SIDE, x0=-self.SIDE / 2, z0=-self.SIDE / 2)
