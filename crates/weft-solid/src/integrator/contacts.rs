@@ -295,6 +295,7 @@ impl Integrator {
         });
         // S is SPD (I plus a Gram matrix in A⁻¹'s inner product); symmetrized against rounding.
         joined.s = ((&s + s.transpose()) * 0.5).cholesky();
+        joined.t = nalgebra::DVector::zeros(m);
         if joined.s.is_none() {
             joined.clear();
             return false;
@@ -707,6 +708,8 @@ struct Joined {
     w: Vec<f64>,
     /// The Cholesky factor of S = I + UᵀW.
     s: Option<nalgebra::Cholesky<f64, nalgebra::Dyn>>,
+    /// Uᵀy, then S⁻¹Uᵀy: each correction's scratch (sized at each join).
+    t: nalgebra::DVector<f64>,
 }
 
 /// Most columns [`Joined`] holds before the factor is made again (8 contacts' worth): each
@@ -721,17 +724,14 @@ impl Joined {
     }
 
     /// Makes `delta` (A⁻¹b) into (A + UUᵀ)⁻¹b.
-    fn correct(&self, delta: &mut [f64]) {
+    fn correct(&mut self, delta: &mut [f64]) {
         let Some(s) = &self.s else { return };
         let dofs = delta.len();
-        let t = nalgebra::DVector::from_iterator(
-            self.u.len(),
-            self.u
-                .iter()
-                .map(|col| col.iter().map(|&(i, v)| v * delta[i]).sum::<f64>()),
-        );
-        let z = s.solve(&t);
-        for (j, zj) in z.iter().enumerate() {
+        for (t, col) in self.t.iter_mut().zip(&self.u) {
+            *t = col.iter().map(|&(i, v)| v * delta[i]).sum::<f64>();
+        }
+        s.solve_mut(&mut self.t);
+        for (j, zj) in self.t.iter().enumerate() {
             for (d, w) in delta.iter_mut().zip(&self.w[j * dofs..(j + 1) * dofs]) {
                 *d -= zj * w;
             }
