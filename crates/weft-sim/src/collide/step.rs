@@ -172,7 +172,15 @@ impl Contacts {
             let (mut added, mut penetration) = (checked.added, checked.deepest);
             let mut crossing = (0, 1.0);
             if let Some(solids) = &mut self.solids {
-                let k = solids.check(setup, &sys.pinned, &st.x, &trial.x, h, &mut self.contacts);
+                let k = solids.check(
+                    setup,
+                    &sys.pinned,
+                    &st.x,
+                    &trial.x,
+                    h,
+                    settings.tolerance * h,
+                    &mut self.contacts,
+                );
                 added += k.added;
                 penetration = penetration.max(k.deepest);
                 crossing = (k.crossing, k.toi);
