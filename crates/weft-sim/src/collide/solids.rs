@@ -396,11 +396,6 @@ impl Solids {
         // its first solve's check adding some 80 edge pairs.)
         let mut near: Vec<(u32, u32, f64, u32)> = Vec::new();
         for (i, j, k) in ee {
-            if std::env::var("WEFT_NOCLOTHEE").is_ok()
-                && !(self.edge_hair[i as usize] || self.edge_hair[j as usize])
-            {
-                continue;
-            }
             let (a, b, pair) = (
                 self.edges[i as usize],
                 self.edges[j as usize],
@@ -495,11 +490,8 @@ impl Solids {
                 // solve promises (`slack`): a contact met to the tolerance ends up to
                 // `tol`·h inside its plane, and on cloth_pile (tolerance 1 mm/s, 1/96 s
                 // steps) half of these re-linearizations were less than 1.04e-5 m deep,
-                // each costing the step a solve again from the start.
-                if inside
-                    && (std::env::var("WEFT_NOSLACK").is_ok() || end_gap < -slack)
-                    && kind == PairKind::EdgeEdge
-                {
+                // each costing the step another solve.
+                if inside && end_gap < -slack && kind == PairKind::EdgeEdge {
                     add = Judged::AtEnd;
                 }
             } else if ccd::time_of_impact(kind, &x, &d, dist * (1.0 - 1e-3)).is_some() {
