@@ -103,9 +103,9 @@ impl Contacts {
     /// fractions `s0` and `s1` of the frame, held vertices at `targets`, Newton from `guess`
     /// when given: contacts detected from the start, then the exact check of every path after
     /// each solve adds the contacts it missed and the step is solved again, its Newton
-    /// starting at the last solve's end and its ADMM from that solve's impulses (at most `MAX_ROUNDS` solves, `MAX_SEGMENT_ROUNDS`
-    /// while only hair segments get contacts; the last one's penetration is reported; the
-    /// statistics count every solve). If
+    /// starting at the last solve's end and its ADMM from that solve's impulses (at most
+    /// `MAX_ROUNDS` solves, `MAX_SEGMENT_ROUNDS` while only hair segments get contacts; the
+    /// last one's penetration is reported; the statistics count every solve). If
     /// primitives of the solids still pass through each other, the step fails with
     /// [`StepError::Intersecting`] so that the caller retries it smaller, unless `last_try`:
     /// then the free vertices are cut back to the last time continuous detection proved safe.
@@ -151,8 +151,8 @@ impl Contacts {
         let mut last: Option<Vec<Vector3<f64>>> = None;
         // And its impulses, for ADMM's multipliers: the check appends the contacts it adds,
         // so the last round's contacts keep their places (the added ones start at zero).
-        // On top of the positions: cloth_pile 13.44 -> 10.93 Newton iterations a step,
-        // hair_pile 15.03 -> 11.20.
+        // On top of the positions: cloth_pile 13.44 → 10.93 Newton iterations a step,
+        // hair_pile 15.03 → 11.20.
         let mut impulses: Vec<[f64; 3]> = Vec::new();
         loop {
             let mut trial = st.clone();
