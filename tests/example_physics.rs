@@ -61,11 +61,12 @@ fn cloth_hang_keeps_its_pins_and_its_size_and_hangs() {
 /// `solver.solid`'s Newton (exact Hessians where positive definite) against projected Newton
 /// (every element Hessian made PSD) on the hanging cloth: the same answer and fewer
 /// iterations. Reference: both solve each step's minimization to ‖Δv‖∞ < 1e-4 m/s, so each
-/// step's positions agree to about 1e-4 · h and, before the cloth buckles (the first three
-/// frames, 6 steps), their difference stays below that times the steps taken. Once it buckles
-/// (frame 4 on) the two trajectories separate by up to centimetres, as the same solver does
-/// with a tolerance of 1e-4 against 1e-7 (measured): the wrinkles' bifurcation amplifies any
-/// difference, so later frames are not compared. Iterations: measured 8.9 against 13.4 a
+/// step's positions agree to about 1e-4 · h and, before the cloth buckles (the first two
+/// frames, 4 steps), their difference stays below that times the steps taken. It starts to
+/// buckle in frame 3: there the same Newton solver with a tolerance of 1e-4 against 1e-8
+/// ends 1.1e-5 m apart (3e-13 m in frames 1–2, measured), as a step's objective has nearby
+/// minima and the path decides which one a step ends in; later the trajectories separate by
+/// up to centimetres. So frames from 3 on are not compared. Iterations: measured 8.9 against 13.4 a
 /// step over 24 frames; over 12 frames Newton must take at most 3/4 of projected Newton's.
 #[test]
 fn cloth_hang_newton_matches_projected_newton_in_fewer_iterations() {
@@ -78,7 +79,7 @@ fn cloth_hang_newton_matches_projected_newton_in_fewer_iterations() {
         );
         g.set_param("solve", "method", serde_json::json!(method))
             .unwrap();
-        let early: Vec<[f64; 3]> = (1..=3).map(|f| vec3_at(&mut g, "free", f)).collect();
+        let early: Vec<[f64; 3]> = (1..=2).map(|f| vec3_at(&mut g, "free", f)).collect();
         vec3_at(&mut g, "free", 12);
         let r = g.node_report("solve").unwrap();
         (

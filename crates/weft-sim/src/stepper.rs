@@ -98,8 +98,10 @@ pub struct FrameStats {
     /// Numeric factorizations, summed over steps (failed inertia tries and a contact
     /// step's refactorizations included).
     pub factorizations: usize,
-    /// Seconds in triangular solves.
+    /// Seconds in triangular solves (and the one-ring preconditioner's conjugate gradients).
     pub solve_seconds: f64,
+    /// Conjugate-gradient iterations of the one-ring preconditioner, summed over steps.
+    pub cg_iterations: usize,
     /// Factorizations retried with added inertia (the exact Hessian was not positive
     /// definite), summed over steps.
     pub inertia_shifts: usize,
@@ -262,6 +264,7 @@ impl SolidStepper {
                 stats.factor_seconds += s.factor_seconds;
                 stats.factorizations += s.factorizations;
                 stats.solve_seconds += s.solve_seconds;
+                stats.cg_iterations += s.pcg_iterations;
                 stats.inertia_shifts += s.shifted;
                 stats.projected_iterations += s.projected;
                 stats.corrections += s.corrections;

@@ -21,6 +21,8 @@
 
 mod contacts;
 mod correction;
+mod factor;
+mod one_ring;
 mod order;
 mod partition;
 mod pool;
@@ -33,14 +35,7 @@ use crate::energy::Local;
 pub use crate::settings::{Method, Settings, StepError, StepStats, StopCheck};
 use crate::system::{SolidSystem, State, SystemError};
 pub use contacts::{CONTACT_VERTICES, Contact, ContactSet, ContactStats};
-use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::sparse::linalg::SupernodalThreshold;
-use faer::sparse::linalg::cholesky::{
-    CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
-    factorize_symbolic_cholesky,
-};
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use faer::{Conj, MatMut, Par, Side};
+use factor::{Analysis, Factor};
 use nalgebra::{Matrix3, Vector3};
 use pool::in_pool;
 use rayon::prelude::*;
@@ -136,162 +131,6 @@ enum Mode {
     Static,
 }
 
-/// Factors cheaper than this keep minimum degree without trying nested dissection: there the
-/// flop count does not predict the time (dissection's leaves make many small supernodes),
-/// and hair, whose chains minimum degree orders without fill, stays as it was. Measured on
-/// the hanging cloth, time per factorization with dissection against minimum degree: 32²
-/// vertices (9.4e7 flops) +10 %, 40² +18 %, 48² (4.3e8) −3 %, 64² (1.5e9) −22 %, 128²
-/// −28 %, 256² −61 %.
-const DISSECTION_MIN_FLOPS: f64 = 5e8;
-
-/// Factorizations from this many flops are tried split in two halves factored concurrently
-/// (`split.rs`), and kept when the larger half and the separator cost less than
-/// [`SPLIT_GAIN`] of the whole. Measured on the hanging cloth (2 threads, fastest of 20
-/// factorizations of one matrix, whole → split): 16² (5.9e6 flops) 0.43 → 0.36 ms, but its
-/// runs no faster (solver 0.25 → 0.28 s for 24 frames); 20² (1.4e7) 0.89 → 0.62 ms; 24²
-/// (2.9e7) 1.65 → 1.04 ms (`graphs/cloth_hang.json`: 0.85 of the time, farm-bench A/B);
-/// 32² 4.1 → 2.4 ms; 48² 10.8 → 6.7 ms; 64² 16.7 → 13.3 ms; 128² 267 → 165 ms.
-const SPLIT_MIN_FLOPS: f64 = 1e7;
-const SPLIT_GAIN: f64 = 0.75;
-
-/// Nested dissection replaces minimum degree only with at most this fraction of its flops.
-const DISSECTION_GAIN: f64 = 0.8;
-
-/// A fill-reducing ordering applied: the permuted lower triangle's pattern and its symbolic
-/// Cholesky factorization, and what a numeric factorization then costs.
-struct Analysis {
-    /// DOF `fwd[i]` is unknown i of the factor.
-    fwd: Vec<usize>,
-    lower_ptr: Vec<usize>,
-    lower_row: Vec<usize>,
-    lower_src: Vec<usize>,
-    symbolic: SymbolicCholesky<usize>,
-    /// Floating-point operations of one numeric factorization.
-    flops: f64,
-}
-
-impl Analysis {
-    /// One numeric Cholesky factorization of the permuted lower triangle gathered from
-    /// `values` (the whole pattern's) into `lower_values`, its factor into `l_values`.
-    fn factor(
-        &self,
-        values: &[f64],
-        lower_values: &mut [f64],
-        l_values: &mut [f64],
-        mem: &mut MemBuffer,
-    ) -> Result<(), faer::linalg::solvers::LltError> {
-        for (v, &k) in lower_values.iter_mut().zip(&self.lower_src) {
-            *v = values[k];
-        }
-        let dofs = self.fwd.len();
-        // SAFETY: `new` checked this pattern with `new_checked`; it never changes after.
-        let sym = unsafe {
-            SymbolicSparseColMatRef::new_unchecked(
-                dofs,
-                dofs,
-                &self.lower_ptr,
-                None,
-                &self.lower_row,
-            )
-        };
-        self.symbolic
-            .factorize_numeric_llt(
-                l_values,
-                SparseColMatRef::new(sym, lower_values),
-                Side::Lower,
-                Default::default(),
-                Par::Seq,
-                MemStack::new(mem),
-                Default::default(),
-            )
-            .map(|_| ())
-    }
-
-    /// The analysis of the pattern (`col_ptr`, `row_idx`: both triangles, 3×3 blocks) with
-    /// its vertices eliminated in the order `order` (`order[i]`: the vertex eliminated i-th).
-    /// `order` may list some of the vertices only: the analysis is then of the submatrix of
-    /// those (rows of other vertices are left out).
-    fn new(order: &[usize], col_ptr: &[usize], row_idx: &[usize]) -> Result<Self, StepError> {
-        let dofs = 3 * order.len();
-        let fwd: Vec<usize> = order
-            .iter()
-            .flat_map(|&v| [3 * v, 3 * v + 1, 3 * v + 2])
-            .collect();
-        let mut inv = vec![usize::MAX; col_ptr.len() - 1];
-        for (i, &d) in fwd.iter().enumerate() {
-            inv[d] = i;
-        }
-        // The lower triangle of the permuted matrix P A Pᵀ, (P A Pᵀ)ᵢⱼ = A(fwd i, fwd j), as a
-        // pattern of its own with, per entry, where its value sits in `values`: each
-        // factorization gathers it in one pass (faer permuting A itself at every
-        // factorization was 10 % of the hanging cloth's time).
-        let (mut lower_ptr, mut lower_row, mut lower_src) = (
-            Vec::with_capacity(dofs + 1),
-            Vec::with_capacity(row_idx.len() / 2 + dofs),
-            Vec::with_capacity(row_idx.len() / 2 + dofs),
-        );
-        lower_ptr.push(0);
-        let mut column: Vec<(usize, usize)> = Vec::new();
-        for (j, &oc) in fwd.iter().enumerate() {
-            column.clear();
-            for k in col_ptr[oc]..col_ptr[oc + 1] {
-                let r = inv[row_idx[k]];
-                if r != usize::MAX && r >= j {
-                    column.push((r, value_index(col_ptr, k, oc)));
-                }
-            }
-            column.sort_unstable();
-            for &(r, k) in &column {
-                lower_row.push(r);
-                lower_src.push(k);
-            }
-            lower_ptr.push(lower_row.len());
-        }
-        // faer's symbolic analysis reads the upper triangle whatever the side when given no
-        // ordering (the numeric factorization then takes the lower one): its transpose.
-        let mut upper_ptr = vec![0usize; dofs + 1];
-        for &r in &lower_row {
-            upper_ptr[r + 1] += 1;
-        }
-        for j in 0..dofs {
-            upper_ptr[j + 1] += upper_ptr[j];
-        }
-        let mut upper_row = vec![0usize; lower_row.len()];
-        let mut next = upper_ptr.clone();
-        for c in 0..dofs {
-            for &r in &lower_row[lower_ptr[c]..lower_ptr[c + 1]] {
-                upper_row[next[r]] = c;
-                next[r] += 1;
-            }
-        }
-        let sym = SymbolicSparseColMatRef::new_checked(dofs, dofs, &upper_ptr, None, &upper_row);
-        // Checked once here: `factor_once` builds its view of the lower pattern unchecked.
-        SymbolicSparseColMatRef::new_checked(dofs, dofs, &lower_ptr, None, &lower_row);
-        let symbolic = factorize_symbolic_cholesky(
-            sym,
-            Side::Upper,
-            SymmetricOrdering::Identity,
-            // Supernodal always: it takes the lower triangle as given (the simplicial one
-            // wants the upper and would transpose it each time), and on the hanging cloth
-            // the simplicial factorization was measured 4.6× slower.
-            CholeskySymbolicParams {
-                supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
-                ..Default::default()
-            },
-        )
-        .map_err(|e| StepError::Factorization(format!("{e:?}")))?;
-        let flops = order::supernodal_flops(symbolic.raw());
-        Ok(Analysis {
-            fwd,
-            lower_ptr,
-            lower_row,
-            lower_src,
-            symbolic,
-            flops,
-        })
-    }
-}
-
 /// A stepper for one system: owns the sparsity pattern, the symbolic factorization and every
 /// work buffer, so stepping allocates nothing per iteration.
 pub struct Integrator {
@@ -304,21 +143,19 @@ pub struct Integrator {
     /// Per element, per (a, b) stencil pair: the block's slot in column block v[b].
     slots: Vec<u32>,
     diag_slot: Vec<u32>,
-    /// The fill-reducing permutation (DOF `analysis.fwd[i]` is unknown i of the factor), the
-    /// lower triangle of P A Pᵀ with each entry's index in `values`, and its symbolic
-    /// factorization (whose own ordering is the identity: the permutation is applied by
-    /// gathering).
-    analysis: Analysis,
-    l_values: Vec<f64>,
-    /// The gathered lower triangle's values.
-    lower_values: Vec<f64>,
-    /// A right-hand side in the factor's order.
-    permuted: Vec<f64>,
-    /// Scratch of the own one-right-hand-side solve (`integrator/solve.rs`), as long as the
-    /// longest pattern below a supernode's diagonal block; `None` when the factor has wide
-    /// supernodes and faer's solve is used.
-    narrow_tmp: Option<Vec<f64>>,
-    mem: MemBuffer,
+    /// The system matrix's factorization.
+    factor: Factor,
+    /// Where the pattern holds the two-ring of wide elements (shell bending) and a factor of
+    /// its one-ring costs much less: that sparser matrix, preconditioning conjugate
+    /// gradients on H in the steps' Newton iterations (`one_ring.rs`). The contact step
+    /// factors H itself.
+    /// Built at the first step that uses it: a contact step never does (a rebuild for its
+    /// contacts' blocks starts a new integrator without it).
+    one_ring: Option<one_ring::OneRing>,
+    /// Whether `one_ring` was built (or found not to pay) for this pattern.
+    one_ring_tried: bool,
+    /// Whether the current Newton iteration's directions go through `one_ring`.
+    pcg: bool,
     grad: Vec<f64>,
     dir: Vec<f64>,
     x_hat: Vec<Vector3<f64>>,
@@ -332,8 +169,6 @@ pub struct Integrator {
     slot_offset: Vec<usize>,
     /// The assembly tree: which elements may be assembled concurrently.
     parts: partition::Part,
-    /// Where set, factorizations and solves go through the two-halves split (`split.rs`).
-    split: Option<split::Split>,
     /// Never split (tests).
     whole_only: bool,
     /// Most low-rank columns a contact step adds to a kept factor for contacts that rejoin
@@ -555,16 +390,6 @@ impl Integrator {
         let diag_slot = (0..n_free)
             .map(|j| nbrs[j].binary_search(&(j as u32)).expect("diagonal") as u32)
             .collect();
-        // Fill-reducing ordering on the vertex graph (a third of the size, a ninth of the
-        // nonzeros of the DOF graph), expanded to keep each vertex's three DOFs together: the
-        // factor's supernodes then align with the 3×3 blocks. Minimum degree, and where the
-        // system says where its vertices sit, nested dissection too: the one whose factor
-        // costs fewer flops is kept (`order.rs`).
-        let mut analysis = Analysis::new(
-            &order::minimum_degree(&nbrs).map_err(StepError::Factorization)?,
-            &col_ptr,
-            &row_idx,
-        )?;
         // Where the free vertices sit (empty without a layout): for dissection and the split.
         let mut at = Vec::new();
         if sys.layout.len() == n {
@@ -575,46 +400,9 @@ impl Integrator {
                 }
             }
         }
-        if !at.is_empty()
-            && analysis.flops >= DISSECTION_MIN_FLOPS
-            && let Some(nd) = order::nested_dissection(&nbrs, &at)
-        {
-            let other = Analysis::new(&nd, &col_ptr, &row_idx)?;
-            if other.flops < DISSECTION_GAIN * analysis.flops {
-                analysis = other;
-            }
-        }
-        // Two halves factored at once (`split.rs`) where the factor is large enough to pay
-        // for the separator's dense work; not with rigid groups (their nodes couple every
-        // member).
-        let split = if sys.rigid.is_empty() && analysis.flops >= SPLIT_MIN_FLOPS && !whole_only {
-            let order: Vec<usize> = analysis.fwd.iter().step_by(3).map(|&d| d / 3).collect();
-            split::Split::new(&nbrs, &order, &col_ptr, &row_idx, &at)?
-                .filter(|sp| sp.flops < SPLIT_GAIN * analysis.flops)
-        } else {
-            None
-        };
-
-        // Each factorization is sequential (`Par::Seq` throughout): faer's parallel
-        // supernodal Cholesky changes its reduction order with the thread count (measured: a
-        // 48×48 cloth differed in the last bits between 1 and 2 threads), and results must be
-        // bit-identical at any count; at 128² it was also slower (31 → 44 s for two frames'
-        // factorizations). Threads go to assembly and to the split's two halves.
-        let par = Par::Seq;
-        let symbolic = &analysis.symbolic;
-        let scratch = symbolic
-            .factorize_numeric_llt_scratch::<f64>(par, Default::default())
-            .or(symbolic.solve_in_place_scratch::<f64>(1, par));
-        if let Some(limit) = max_bytes {
-            let need = (symbolic.len_val() as u64)
-                .saturating_add(3 * analysis.lower_row.len() as u64 + 3 * dofs as u64)
-                .saturating_mul(8)
-                .saturating_add(scratch.size_bytes() as u64)
-                .saturating_add((row_idx.len() as u64).saturating_mul(16));
-            if need > limit {
-                return Err(refuse("the Cholesky factor", need, limit));
-            }
-        }
+        // Not split with rigid groups (their nodes couple every member).
+        let may_split = sys.rigid.is_empty() && !whole_only;
+        let factor = Factor::new(&nbrs, &col_ptr, &row_idx, &at, may_split, max_bytes)?;
         // Which elements may be assembled concurrently (`partition.rs`), by their free
         // vertices only (pinned ones are never written).
         let stencils: partition::Stencils = (0..sys.elements.len())
@@ -632,13 +420,6 @@ impl Integrator {
             })
             .collect();
         let parts = partition::partition(stencils, n, &sys.layout);
-        // A split system factors its halves (`split.rs`): no whole factor to hold.
-        let whole = if split.is_some() { 0 } else { 1 };
-        let l_values = vec![0.0; whole * symbolic.len_val()];
-        let narrow_tmp = match symbolic.raw() {
-            SymbolicCholeskyRaw::Supernodal(sn) => solve::narrow(sn).map(|m| vec![0.0; m]),
-            SymbolicCholeskyRaw::Simplicial(_) => None,
-        };
         Ok(Integrator {
             n,
             free_of,
@@ -648,16 +429,10 @@ impl Integrator {
             row_idx,
             slots,
             diag_slot,
-            l_values,
-            lower_values: vec![0.0; whole * analysis.lower_row.len()],
-            analysis,
-            permuted: vec![0.0; dofs],
-            narrow_tmp,
-            mem: MemBuffer::new(if whole == 1 {
-                scratch
-            } else {
-                faer::dyn_stack::StackReq::EMPTY
-            }),
+            factor,
+            one_ring: None,
+            one_ring_tried: false,
+            pcg: false,
             grad: vec![0.0; dofs],
             dir: vec![0.0; dofs],
             x_hat: vec![Vector3::zeros(); n],
@@ -682,7 +457,6 @@ impl Integrator {
             slide_scale: Vec::new(),
             slide_normal: Vec::new(),
             per_element: RefCell::new(vec![0.0; slot_offset.len()]),
-            split,
             whole_only,
             joined_max: contacts::JOINED_MAX,
             slot_offset,
@@ -941,14 +715,42 @@ impl Integrator {
         block_entry(&self.col_ptr, f, self.diag_slot[f] as usize, c, c)
     }
 
-    /// `dir` ← −H⁻¹ `grad` with the last factor.
-    fn solve_direction(&mut self, stats: &mut StepStats) {
+    /// `dir` ← −H⁻¹ `grad` with the last factor, or by conjugate gradients preconditioned
+    /// with the one-ring factor while `pcg` is set: false when they met a direction of
+    /// non-positive curvature (H is not positive definite). Should they not converge, the
+    /// rest of the step factors H itself, starting with this direction.
+    fn solve_direction(&mut self, stats: &mut StepStats) -> bool {
+        if self.pcg
+            && let Some(pre) = self.one_ring.as_mut()
+        {
+            let t = Instant::now();
+            let (outcome, its) = pre.solve(
+                &self.values,
+                &self.col_ptr,
+                &self.row_idx,
+                &self.grad,
+                &mut self.dir,
+            );
+            stats.solve_seconds += t.elapsed().as_secs_f64();
+            stats.pcg_iterations += its;
+            match outcome {
+                one_ring::Outcome::Converged => return true,
+                one_ring::Outcome::Indefinite => return false,
+                one_ring::Outcome::Failed => {
+                    self.pcg = false;
+                    if !self.try_factor(stats) {
+                        return false;
+                    }
+                }
+            }
+        }
         for (d, g) in self.dir.iter_mut().zip(&self.grad) {
             *d = -g;
         }
         let mut dir = std::mem::take(&mut self.dir);
         self.solve_in_place(stats, &mut dir);
         self.dir = dir;
+        true
     }
 
     /// ‖dir‖∞ · `scale` (the residual the tolerance is compared with).
@@ -980,7 +782,13 @@ impl Integrator {
     /// ×100 from 1e-10 of the largest diagonal entry until it succeeds (Levenberg–Marquardt).
     fn newton_direction(&mut self, stats: &mut StepStats, shift: f64) -> Result<(), StepError> {
         self.factor(stats, shift)?;
-        self.solve_direction(stats);
+        if !self.solve_direction(stats) {
+            // Conjugate gradients met non-positive curvature in a matrix meant to be
+            // positive definite (projected): H's own factor decides, its shift grown as needed.
+            self.pcg = false;
+            self.factor(stats, 0.0)?;
+            self.solve_direction(stats);
+        }
         Ok(())
     }
 
@@ -997,7 +805,13 @@ impl Integrator {
         let mut tries = 0;
         loop {
             stats.factorizations += 1;
-            match self.factor_once() {
+            // Projected or regularized Hessians need no proof of definiteness: M₊.
+            let outcome = match self.factor_preconditioner(false) {
+                Some(true) => Ok(()),
+                Some(false) => Err(faer::linalg::solvers::LltError::NonPositivePivot { index: 0 }),
+                None => self.factor_once(),
+            };
+            match outcome {
                 Ok(()) => break,
                 Err(e) if tries >= 8 => {
                     return Err(StepError::Factorization(format!(
@@ -1024,27 +838,36 @@ impl Integrator {
     /// non-positive pivot, the matrix is not positive definite).
     fn try_factor(&mut self, stats: &mut StepStats) -> bool {
         let t = Instant::now();
-        let ok = self.factor_once().is_ok();
+        // The exact Hessian's try: M₋'s success proves H positive definite, as H's own
+        // factorization would (a CG blind to H's negative curvature could otherwise end at
+        // a saddle of the step's objective).
+        let ok = match self.factor_preconditioner(true) {
+            Some(ok) => ok,
+            None => self.factor_once().is_ok(),
+        };
         stats.factor_seconds += t.elapsed().as_secs_f64();
         stats.factorizations += 1;
         ok
     }
 
-    /// One numeric Cholesky factorization of `values`: into `l_values`, or the split's halves.
-    fn factor_once(&mut self) -> Result<(), faer::linalg::solvers::LltError> {
-        if let Some(sp) = self.split.as_mut() {
-            return if sp.factor(&self.values) {
-                Ok(())
-            } else {
-                Err(faer::linalg::solvers::LltError::NonPositivePivot { index: 0 })
-            };
+    /// While `pcg` is set, factors the one-ring preconditioner from `values`: whether it
+    /// was positive definite, or `None` when H is to be factored instead (no preconditioner,
+    /// or it declined: then the rest of the step factors H).
+    fn factor_preconditioner(&mut self, certify: bool) -> Option<bool> {
+        let pre = self.one_ring.as_mut().filter(|_| self.pcg)?;
+        match pre.factor(&self.values, certify) {
+            one_ring::Factored::Positive => Some(true),
+            one_ring::Factored::NotPositive => Some(false),
+            one_ring::Factored::Declined => {
+                self.pcg = false;
+                None
+            }
         }
-        self.analysis.factor(
-            &self.values,
-            &mut self.lower_values,
-            &mut self.l_values,
-            &mut self.mem,
-        )
+    }
+
+    /// One numeric Cholesky factorization of `values`.
+    fn factor_once(&mut self) -> Result<(), faer::linalg::solvers::LltError> {
+        self.factor.factor(&self.values)
     }
 
     /// Adds `kappa` · mᵢ/h² to every free vertex's diagonal block.
@@ -1052,8 +875,9 @@ impl Integrator {
         self.add_to_diagonal(|i| kappa * sys.mass[i] / (h * h));
     }
 
-    /// Factorizes `values` (assembled with [`Hessians::First`]), adding inertia up to
-    /// [`SHIFT_TRIES`] times while it is not positive definite: whether it succeeded.
+    /// Factorizes `values` (assembled with [`Hessians::First`]) and solves for the direction,
+    /// adding inertia up to [`SHIFT_TRIES`] times while it is not positive definite (its
+    /// factorization fails, or conjugate gradients meet non-positive curvature).
     /// Returns `Some(shifted)` (whether inertia was added) on success. `last_shift` is the
     /// inertia that succeeded last in this step (0: none yet); a success updates it.
     fn factor_first(
@@ -1063,7 +887,7 @@ impl Integrator {
         last_shift: &mut f64,
         stats: &mut StepStats,
     ) -> Option<bool> {
-        if self.try_factor(stats) {
+        if self.try_factor(stats) && self.solve_direction(stats) {
             return Some(false);
         }
         let mut kappa = (SHIFT_RESTART * *last_shift).max(FIRST_SHIFT);
@@ -1072,7 +896,7 @@ impl Integrator {
             self.shift_inertia(sys, h, kappa);
             added += kappa;
             stats.shifted += 1;
-            if self.try_factor(stats) {
+            if self.try_factor(stats) && self.solve_direction(stats) {
                 *last_shift = added;
                 return Some(true);
             }
@@ -1102,40 +926,13 @@ impl Integrator {
         if !self.grad.iter().all(|g| g.is_finite()) {
             return None;
         }
-        let shifted = self.factor_first(sys, h, last_shift, stats)?;
-        self.solve_direction(stats);
-        Some(shifted)
+        self.factor_first(sys, h, last_shift, stats)
     }
 
     /// Solves with the last factor in place (`b` ← H⁻¹ b, 3 entries per free vertex).
     fn solve_in_place(&mut self, stats: &mut StepStats, b: &mut [f64]) {
         let t = Instant::now();
-        if let Some(sp) = self.split.as_mut() {
-            sp.solve_in_place(b);
-            stats.solve_seconds += t.elapsed().as_secs_f64();
-            return;
-        }
-        let dofs = 3 * self.n_free;
-        for (p, &i) in self.permuted.iter_mut().zip(&self.analysis.fwd) {
-            *p = b[i];
-        }
-        match (self.analysis.symbolic.raw(), self.narrow_tmp.as_mut()) {
-            // Hair-like factors (every supernode narrow): see `solve.rs` for why not faer's.
-            (SymbolicCholeskyRaw::Supernodal(sn), Some(tmp)) => {
-                solve::supernodal_solve(sn, &self.l_values, &mut self.permuted, tmp);
-            }
-            _ => {
-                let llt = faer::sparse::linalg::cholesky::LltRef::new(
-                    &self.analysis.symbolic,
-                    &self.l_values,
-                );
-                let rhs = MatMut::from_column_major_slice_mut(&mut self.permuted, dofs, 1);
-                llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut self.mem));
-            }
-        }
-        for (&p, &i) in self.permuted.iter().zip(&self.analysis.fwd) {
-            b[i] = p;
-        }
+        self.factor.solve_in_place(b);
         stats.solve_seconds += t.elapsed().as_secs_f64();
     }
 
@@ -1321,13 +1118,105 @@ impl Integrator {
     /// Whether this system has work for more than one thread (an assembly tree with a split,
     /// or a split factorization): its steps then run on a pool worker ([`in_pool`]).
     fn threaded(&self) -> bool {
-        self.split.is_some() || matches!(self.parts, partition::Part::Split { .. })
+        self.factor.split.is_some()
+            || self.one_ring.as_ref().is_some_and(|o| o.is_split())
+            || matches!(self.parts, partition::Part::Split { .. })
+    }
+
+    /// The one-ring preconditioner for this pattern (`one_ring.rs`), where it pays: its
+    /// pattern keeps the pairs some element of at most three vertices couples (membrane
+    /// triangles, rods, springs), every pair with a rigid group's node, and the contacts'
+    /// extra blocks; the wide elements' (shell bending's) other pairs are dropped.
+    fn build_one_ring(&self, sys: &SolidSystem) -> Result<Option<one_ring::OneRing>, StepError> {
+        let first = self.groups.first;
+        let nbrs: Vec<Vec<u32>> = (0..self.n_free)
+            .map(|v| {
+                (self.col_ptr[3 * v]..self.col_ptr[3 * v + 1])
+                    .step_by(3)
+                    .map(|k| (self.row_idx[k] / 3) as u32)
+                    .collect()
+            })
+            .collect();
+        let mut keep: Vec<Vec<u32>> = (0..self.n_free as u32).map(|j| vec![j]).collect();
+        for (v, l) in nbrs.iter().enumerate() {
+            if v >= first {
+                keep[v].clone_from(l);
+            } else {
+                keep[v].extend(l.iter().filter(|&&r| r as usize >= first));
+            }
+        }
+        for &(a, b) in &self.extra {
+            if let (Some(la), true) = (keep.get_mut(a as usize), (b as usize) < self.n_free) {
+                la.push(b);
+                keep[b as usize].push(a);
+            }
+        }
+        let node = |v: u32| self.free_of.get(v as usize).copied().unwrap_or(NONE);
+        sys.elements.for_each(|e| {
+            if e.vertices().len() <= 3 {
+                for &a in e.vertices() {
+                    for &b in e.vertices() {
+                        let (fa, fb) = (node(a), node(b));
+                        if fa != NONE && fb != NONE && (fb as usize) < first {
+                            keep[fb as usize].push(fa);
+                        }
+                    }
+                }
+            }
+        });
+        for l in &mut keep {
+            l.sort_unstable();
+            l.dedup();
+        }
+        let mut at = Vec::new();
+        if sys.layout.len() == self.n {
+            at = vec![Vector3::zeros(); first];
+            for (v, &f) in self.free_of.iter().enumerate() {
+                if let Some(p) = at.get_mut(f as usize) {
+                    *p = sys.layout[v];
+                }
+            }
+        }
+        one_ring::OneRing::new(
+            &nbrs,
+            &self.col_ptr,
+            &keep,
+            self.factor.flops(),
+            &at,
+            sys.rigid.is_empty() && !self.whole_only,
+            self.max_bytes,
+        )
     }
 
     /// Newton (exact Hessians first for [`Method::Newton`] in dynamic steps, projected ones
     /// otherwise) with backtracking line search on the mode's objective. Callers run it on a
-    /// worker of the thread pool ([`in_pool`]).
+    /// worker of the thread pool ([`in_pool`]). A dynamic step's Newton directions go through
+    /// the one-ring preconditioner where the system has one (a static solve's matrix may be
+    /// singular, and a linearized step's one direction is the answer: both factor H).
     fn minimize(
+        &mut self,
+        sys: &SolidSystem,
+        x: &mut Vec<Vector3<f64>>,
+        x0: &[Vector3<f64>],
+        mode: Mode,
+        settings: &Settings,
+    ) -> Result<StepStats, StepError> {
+        self.pcg = matches!(mode, Mode::Dynamic { .. }) && settings.method == Method::Newton;
+        if self.pcg && !self.one_ring_tried {
+            self.one_ring_tried = true;
+            // Not paying, or too large for the memory limit: H's factor serves as before.
+            self.one_ring = self.build_one_ring(sys).ok().flatten();
+        }
+        if let (Mode::Dynamic { h }, Some(pre)) = (mode, self.one_ring.as_mut()) {
+            pre.set_inertia(&self.free_of, &sys.mass, h);
+        }
+        let out = self.newton(sys, x, x0, mode, settings);
+        self.pcg = false;
+        out
+    }
+
+    /// [`Self::minimize`]'s iteration.
+    fn newton(
         &mut self,
         sys: &SolidSystem,
         x: &mut Vec<Vector3<f64>>,

@@ -66,8 +66,10 @@ pub struct StepStats {
     /// Numeric factorizations, the failed ones included (inertia tries, regularization,
     /// a contact step's refactorizations).
     pub factorizations: usize,
-    /// Seconds in triangular solves.
+    /// Seconds in triangular solves (and the one-ring preconditioner's conjugate gradients).
     pub solve_seconds: f64,
+    /// Conjugate-gradient iterations of the one-ring preconditioner, summed over directions.
+    pub pcg_iterations: usize,
     /// Factorizations retried with added inertia because the exact Hessian was not
     /// positive definite ([`Method::Newton`]).
     pub shifted: usize,
@@ -93,6 +95,7 @@ impl StepStats {
         self.factor_seconds += earlier.factor_seconds;
         self.factorizations += earlier.factorizations;
         self.solve_seconds += earlier.solve_seconds;
+        self.pcg_iterations += earlier.pcg_iterations;
         self.shifted += earlier.shifted;
         self.projected += earlier.projected;
         self.corrections += earlier.corrections;

@@ -248,7 +248,7 @@ impl Step for SolidSolver {
                     "max_newton_iterations": s.max_newton_iterations, "max_residual": s.max_residual,
                     "assembly_seconds": s.assembly_seconds, "factor_seconds": s.factor_seconds,
                     "factorizations": s.factorizations,
-                    "solve_seconds": s.solve_seconds, "seconds": s.seconds,
+                    "solve_seconds": s.solve_seconds, "cg_iterations": s.cg_iterations, "seconds": s.seconds,
                     "inertia_shifts": s.inertia_shifts, "projected_iterations": s.projected_iterations,
                     "corrections": s.corrections, "correction_iterations": s.correction_iterations,
                 });

@@ -159,7 +159,7 @@ fn flops(sn: &SymbolicSupernodalCholesky<usize>) -> f64 {
 
 #[cfg(test)]
 pub(super) mod tests {
-    use super::super::{DISSECTION_GAIN, DISSECTION_MIN_FLOPS};
+    use super::super::factor::{DISSECTION_GAIN, DISSECTION_MIN_FLOPS};
     use super::*;
     use crate::system::{SolidSystem, State};
 
@@ -277,9 +277,9 @@ pub(super) mod tests {
         let plain = Integrator::new(&sys).unwrap();
         sys.layout = state.x.clone();
         let cut = Integrator::new(&sys).unwrap();
-        let flops = |i: &Integrator| supernodal_flops(i.analysis.symbolic.raw());
+        let flops = |i: &Integrator| supernodal_flops(i.factor.analysis.symbolic.raw());
         assert!(
-            plain.analysis.fwd != cut.analysis.fwd,
+            plain.factor.analysis.fwd != cut.factor.analysis.fwd,
             "the layout changed nothing"
         );
         assert!(
@@ -290,7 +290,7 @@ pub(super) mod tests {
         );
         assert!(flops(&plain) >= DISSECTION_MIN_FLOPS);
         // The last unknowns are the top separator: vertices of one straight band.
-        let last: Vec<usize> = cut.analysis.fwd[cut.analysis.fwd.len() - 3 * k..]
+        let last: Vec<usize> = cut.factor.analysis.fwd[cut.factor.analysis.fwd.len() - 3 * k..]
             .iter()
             .step_by(3)
             .map(|&d| d / 3)

@@ -394,7 +394,7 @@ fn dense_solve(l: &[f64], m: usize, x: &mut [f64]) {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::integrator::value_index;
     use nalgebra::{DMatrix, DVector};
@@ -429,7 +429,7 @@ mod tests {
     }
 
     /// The integrator's 3×3-block pattern of a vertex graph (both triangles, rows sorted).
-    fn pattern(nbrs: &[Vec<u32>]) -> (Vec<usize>, Vec<usize>) {
+    pub(in crate::integrator) fn pattern(nbrs: &[Vec<u32>]) -> (Vec<usize>, Vec<usize>) {
         let (mut col_ptr, mut row_idx) = (vec![0], Vec::new());
         for l in nbrs {
             for _ in 0..3 {
@@ -518,7 +518,7 @@ mod tests {
         sys.layout = state.x.clone();
         let mut split = Integrator::new(&sys).unwrap();
         let mut whole = Integrator::new_whole(&sys).unwrap();
-        assert!(split.split.is_some() && whole.split.is_none());
+        assert!(split.factor.split.is_some() && whole.factor.split.is_none());
         let settings = Settings::default();
         let h = 1.0 / 48.0;
         let (mut a, mut b) = (state.clone(), state.clone());

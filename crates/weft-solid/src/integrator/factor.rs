@@ -1,0 +1,342 @@
+//! The Newton system's sparse Cholesky factorization: a fill-reducing ordering chosen for
+//! the pattern (`order.rs`), its symbolic analysis, and the numeric factorization and solve,
+//! whole or as two halves at once (`split.rs`). The integrator holds one for the system
+//! matrix, and another for the one-ring preconditioner where it has one (`one_ring.rs`).
+//!
+//! Each factorization is sequential (`Par::Seq` throughout): faer's parallel supernodal
+//! Cholesky changes its reduction order with the thread count (measured: a 48×48 cloth
+//! differed in the last bits between 1 and 2 threads), and results must be bit-identical at
+//! any count; at 128² it was also slower (31 → 44 s for two frames' factorizations). Threads
+//! go to assembly and to the split's two halves.
+
+use super::{order, solve, split, value_index};
+use crate::settings::StepError;
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::sparse::linalg::SupernodalThreshold;
+use faer::sparse::linalg::cholesky::{
+    CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
+    factorize_symbolic_cholesky,
+};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{Conj, MatMut, Par, Side};
+use nalgebra::Vector3;
+
+/// Factors cheaper than this keep minimum degree without trying nested dissection: there the
+/// flop count does not predict the time (dissection's leaves make many small supernodes),
+/// and hair, whose chains minimum degree orders without fill, stays as it was. Measured on
+/// the hanging cloth, time per factorization with dissection against minimum degree: 32²
+/// vertices (9.4e7 flops) +10 %, 40² +18 %, 48² (4.3e8) −3 %, 64² (1.5e9) −22 %, 128²
+/// −28 %, 256² −61 %.
+pub(super) const DISSECTION_MIN_FLOPS: f64 = 5e8;
+
+/// Factorizations from this many flops are tried split in two halves factored concurrently
+/// (`split.rs`), and kept when the larger half and the separator cost less than
+/// [`SPLIT_GAIN`] of the whole. Measured on the hanging cloth (2 threads, fastest of 20
+/// factorizations of one matrix, whole → split): 16² (5.9e6 flops) 0.43 → 0.36 ms, but its
+/// runs no faster (solver 0.25 → 0.28 s for 24 frames); 20² (1.4e7) 0.89 → 0.62 ms; 24²
+/// (2.9e7) 1.65 → 1.04 ms (`graphs/cloth_hang.json`: 0.85 of the time, farm-bench A/B);
+/// 32² 4.1 → 2.4 ms; 48² 10.8 → 6.7 ms; 64² 16.7 → 13.3 ms; 128² 267 → 165 ms.
+const SPLIT_MIN_FLOPS: f64 = 1e7;
+const SPLIT_GAIN: f64 = 0.75;
+
+/// Nested dissection replaces minimum degree only with at most this fraction of its flops.
+pub(super) const DISSECTION_GAIN: f64 = 0.8;
+
+/// A fill-reducing ordering applied: the permuted lower triangle's pattern and its symbolic
+/// Cholesky factorization, and what a numeric factorization then costs.
+pub(super) struct Analysis {
+    /// DOF `fwd[i]` is unknown i of the factor.
+    pub(super) fwd: Vec<usize>,
+    pub(super) lower_ptr: Vec<usize>,
+    pub(super) lower_row: Vec<usize>,
+    pub(super) lower_src: Vec<usize>,
+    pub(super) symbolic: SymbolicCholesky<usize>,
+    /// Floating-point operations of one numeric factorization.
+    pub(super) flops: f64,
+}
+
+impl Analysis {
+    /// One numeric Cholesky factorization of the permuted lower triangle gathered from
+    /// `values` (the whole pattern's) into `lower_values`, its factor into `l_values`.
+    pub(super) fn factor(
+        &self,
+        values: &[f64],
+        lower_values: &mut [f64],
+        l_values: &mut [f64],
+        mem: &mut MemBuffer,
+    ) -> Result<(), faer::linalg::solvers::LltError> {
+        for (v, &k) in lower_values.iter_mut().zip(&self.lower_src) {
+            *v = values[k];
+        }
+        let dofs = self.fwd.len();
+        // SAFETY: `new` checked this pattern with `new_checked`; it never changes after.
+        let sym = unsafe {
+            SymbolicSparseColMatRef::new_unchecked(
+                dofs,
+                dofs,
+                &self.lower_ptr,
+                None,
+                &self.lower_row,
+            )
+        };
+        self.symbolic
+            .factorize_numeric_llt(
+                l_values,
+                SparseColMatRef::new(sym, lower_values),
+                Side::Lower,
+                Default::default(),
+                Par::Seq,
+                MemStack::new(mem),
+                Default::default(),
+            )
+            .map(|_| ())
+    }
+
+    /// The analysis of the pattern (`col_ptr`, `row_idx`: both triangles, 3×3 blocks) with
+    /// its vertices eliminated in the order `order` (`order[i]`: the vertex eliminated i-th).
+    /// `order` may list some of the vertices only: the analysis is then of the submatrix of
+    /// those (rows of other vertices are left out).
+    pub(super) fn new(
+        order: &[usize],
+        col_ptr: &[usize],
+        row_idx: &[usize],
+    ) -> Result<Self, StepError> {
+        let dofs = 3 * order.len();
+        let fwd: Vec<usize> = order
+            .iter()
+            .flat_map(|&v| [3 * v, 3 * v + 1, 3 * v + 2])
+            .collect();
+        let mut inv = vec![usize::MAX; col_ptr.len() - 1];
+        for (i, &d) in fwd.iter().enumerate() {
+            inv[d] = i;
+        }
+        // The lower triangle of the permuted matrix P A Pᵀ, (P A Pᵀ)ᵢⱼ = A(fwd i, fwd j), as a
+        // pattern of its own with, per entry, where its value sits in `values`: each
+        // factorization gathers it in one pass (faer permuting A itself at every
+        // factorization was 10 % of the hanging cloth's time).
+        let (mut lower_ptr, mut lower_row, mut lower_src) = (
+            Vec::with_capacity(dofs + 1),
+            Vec::with_capacity(row_idx.len() / 2 + dofs),
+            Vec::with_capacity(row_idx.len() / 2 + dofs),
+        );
+        lower_ptr.push(0);
+        let mut column: Vec<(usize, usize)> = Vec::new();
+        for (j, &oc) in fwd.iter().enumerate() {
+            column.clear();
+            for k in col_ptr[oc]..col_ptr[oc + 1] {
+                let r = inv[row_idx[k]];
+                if r != usize::MAX && r >= j {
+                    column.push((r, value_index(col_ptr, k, oc)));
+                }
+            }
+            column.sort_unstable();
+            for &(r, k) in &column {
+                lower_row.push(r);
+                lower_src.push(k);
+            }
+            lower_ptr.push(lower_row.len());
+        }
+        // faer's symbolic analysis reads the upper triangle whatever the side when given no
+        // ordering (the numeric factorization then takes the lower one): its transpose.
+        let mut upper_ptr = vec![0usize; dofs + 1];
+        for &r in &lower_row {
+            upper_ptr[r + 1] += 1;
+        }
+        for j in 0..dofs {
+            upper_ptr[j + 1] += upper_ptr[j];
+        }
+        let mut upper_row = vec![0usize; lower_row.len()];
+        let mut next = upper_ptr.clone();
+        for c in 0..dofs {
+            for &r in &lower_row[lower_ptr[c]..lower_ptr[c + 1]] {
+                upper_row[next[r]] = c;
+                next[r] += 1;
+            }
+        }
+        let sym = SymbolicSparseColMatRef::new_checked(dofs, dofs, &upper_ptr, None, &upper_row);
+        // Checked once here: `factor_once` builds its view of the lower pattern unchecked.
+        SymbolicSparseColMatRef::new_checked(dofs, dofs, &lower_ptr, None, &lower_row);
+        let symbolic = factorize_symbolic_cholesky(
+            sym,
+            Side::Upper,
+            SymmetricOrdering::Identity,
+            // Supernodal always: it takes the lower triangle as given (the simplicial one
+            // wants the upper and would transpose it each time), and on the hanging cloth
+            // the simplicial factorization was measured 4.6× slower.
+            CholeskySymbolicParams {
+                supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
+                ..Default::default()
+            },
+        )
+        .map_err(|e| StepError::Factorization(format!("{e:?}")))?;
+        let flops = order::supernodal_flops(symbolic.raw());
+        Ok(Analysis {
+            fwd,
+            lower_ptr,
+            lower_row,
+            lower_src,
+            symbolic,
+            flops,
+        })
+    }
+}
+
+/// A factorization of one pattern (`col_ptr`/`row_idx`: both triangles, 3×3 blocks, values
+/// stored by whole blocks): its analysis, and either its factor or its split's.
+pub(super) struct Factor {
+    /// The fill-reducing permutation (DOF `analysis.fwd[i]` is unknown i of the factor), the
+    /// lower triangle of P A Pᵀ with each entry's index in `values`, and its symbolic
+    /// factorization (whose own ordering is the identity: the permutation is applied by
+    /// gathering).
+    pub(super) analysis: Analysis,
+    l_values: Vec<f64>,
+    /// The gathered lower triangle's values.
+    lower_values: Vec<f64>,
+    /// A right-hand side in the factor's order.
+    permuted: Vec<f64>,
+    /// Scratch of the own one-right-hand-side solve (`solve.rs`), as long as the longest
+    /// pattern below a supernode's diagonal block; `None` when the factor has wide
+    /// supernodes and faer's solve is used.
+    narrow_tmp: Option<Vec<f64>>,
+    mem: MemBuffer,
+    /// Where set, factorizations and solves go through the two-halves split (`split.rs`).
+    pub(super) split: Option<split::Split>,
+}
+
+impl Factor {
+    /// Orders and analyses the pattern of the vertex graph `nbrs` (block neighbours of each
+    /// node, itself included, sorted; `col_ptr`/`row_idx` its DOF pattern): minimum degree,
+    /// and where `at` says where the first nodes sit, nested dissection too, the one whose
+    /// factor costs fewer flops kept (`order.rs`); split in two halves where `may_split` and
+    /// it pays. Refuses a factor larger than `max_bytes` (with `pattern_bytes` of the caller's
+    /// own buffers counted) before allocating it.
+    pub(super) fn new(
+        nbrs: &[Vec<u32>],
+        col_ptr: &[usize],
+        row_idx: &[usize],
+        at: &[Vector3<f64>],
+        may_split: bool,
+        max_bytes: Option<u64>,
+    ) -> Result<Self, StepError> {
+        // Fill-reducing ordering on the vertex graph (a third of the size, a ninth of the
+        // nonzeros of the DOF graph), expanded to keep each vertex's three DOFs together: the
+        // factor's supernodes then align with the 3×3 blocks.
+        let mut analysis = Analysis::new(
+            &order::minimum_degree(nbrs).map_err(StepError::Factorization)?,
+            col_ptr,
+            row_idx,
+        )?;
+        if !at.is_empty()
+            && analysis.flops >= DISSECTION_MIN_FLOPS
+            && let Some(nd) = order::nested_dissection(nbrs, at)
+        {
+            let other = Analysis::new(&nd, col_ptr, row_idx)?;
+            if other.flops < DISSECTION_GAIN * analysis.flops {
+                analysis = other;
+            }
+        }
+        // Two halves factored at once (`split.rs`) where the factor is large enough to pay
+        // for the separator's dense work.
+        let split = if may_split && analysis.flops >= SPLIT_MIN_FLOPS {
+            let order: Vec<usize> = analysis.fwd.iter().step_by(3).map(|&d| d / 3).collect();
+            split::Split::new(nbrs, &order, col_ptr, row_idx, at)?
+                .filter(|sp| sp.flops < SPLIT_GAIN * analysis.flops)
+        } else {
+            None
+        };
+        let dofs = analysis.fwd.len();
+        let par = Par::Seq;
+        let symbolic = &analysis.symbolic;
+        let scratch = symbolic
+            .factorize_numeric_llt_scratch::<f64>(par, Default::default())
+            .or(symbolic.solve_in_place_scratch::<f64>(1, par));
+        if let Some(limit) = max_bytes {
+            let need = (symbolic.len_val() as u64)
+                .saturating_add(3 * analysis.lower_row.len() as u64 + 3 * dofs as u64)
+                .saturating_mul(8)
+                .saturating_add(scratch.size_bytes() as u64)
+                .saturating_add((row_idx.len() as u64).saturating_mul(16));
+            if need > limit {
+                const GIB: f64 = (1u64 << 30) as f64;
+                return Err(StepError::TooLarge {
+                    what: "the Cholesky factor",
+                    need_gib: need as f64 / GIB,
+                    limit_gib: limit as f64 / GIB,
+                });
+            }
+        }
+        // A split system factors its halves (`split.rs`): no whole factor to hold.
+        let whole = if split.is_some() { 0 } else { 1 };
+        let narrow_tmp = match symbolic.raw() {
+            SymbolicCholeskyRaw::Supernodal(sn) => solve::narrow(sn).map(|m| vec![0.0; m]),
+            SymbolicCholeskyRaw::Simplicial(_) => None,
+        };
+        Ok(Factor {
+            l_values: vec![0.0; whole * symbolic.len_val()],
+            lower_values: vec![0.0; whole * analysis.lower_row.len()],
+            permuted: vec![0.0; dofs],
+            narrow_tmp,
+            mem: MemBuffer::new(if whole == 1 {
+                scratch
+            } else {
+                faer::dyn_stack::StackReq::EMPTY
+            }),
+            analysis,
+            split,
+        })
+    }
+
+    /// Floating-point operations of one numeric factorization (the split's where split).
+    pub(super) fn flops(&self) -> f64 {
+        self.split
+            .as_ref()
+            .map_or(self.analysis.flops, |sp| sp.flops)
+    }
+
+    /// One numeric Cholesky factorization of `values`: into the factor, or the split's
+    /// halves. An error means a non-positive pivot: the matrix is not positive definite.
+    pub(super) fn factor(&mut self, values: &[f64]) -> Result<(), faer::linalg::solvers::LltError> {
+        if let Some(sp) = self.split.as_mut() {
+            return if sp.factor(values) {
+                Ok(())
+            } else {
+                Err(faer::linalg::solvers::LltError::NonPositivePivot { index: 0 })
+            };
+        }
+        self.analysis.factor(
+            values,
+            &mut self.lower_values,
+            &mut self.l_values,
+            &mut self.mem,
+        )
+    }
+
+    /// Solves with the last factor in place (`b` ← A⁻¹ b).
+    pub(super) fn solve_in_place(&mut self, b: &mut [f64]) {
+        if let Some(sp) = self.split.as_mut() {
+            sp.solve_in_place(b);
+            return;
+        }
+        let dofs = self.analysis.fwd.len();
+        for (p, &i) in self.permuted.iter_mut().zip(&self.analysis.fwd) {
+            *p = b[i];
+        }
+        match (self.analysis.symbolic.raw(), self.narrow_tmp.as_mut()) {
+            // Hair-like factors (every supernode narrow): see `solve.rs` for why not faer's.
+            (SymbolicCholeskyRaw::Supernodal(sn), Some(tmp)) => {
+                solve::supernodal_solve(sn, &self.l_values, &mut self.permuted, tmp);
+            }
+            _ => {
+                let llt = faer::sparse::linalg::cholesky::LltRef::new(
+                    &self.analysis.symbolic,
+                    &self.l_values,
+                );
+                let rhs = MatMut::from_column_major_slice_mut(&mut self.permuted, dofs, 1);
+                llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut self.mem));
+            }
+        }
+        for (&p, &i) in self.permuted.iter().zip(&self.analysis.fwd) {
+            b[i] = p;
+        }
+    }
+}

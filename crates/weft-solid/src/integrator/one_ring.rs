@@ -1,0 +1,433 @@
+//! The one-ring preconditioner: Newton directions by conjugate gradients on the system
+//! matrix H, preconditioned by a Cholesky factor of a sparser matrix M.
+//!
+//! Shell bending couples each vertex with its two-ring (a hinge's two wing tips, a midedge
+//! triangle's flaps, a vertex's one-ring through its Laplacian), and the two-ring pattern's
+//! Cholesky factor costs 5–8× the flops of the one-ring's (measured on grids with nested
+//! dissection or minimum degree: 24² 2.3e7 against 4.3e6, 128² 7.0e9 against 1.0e9, 256²
+//! 6.2e10 against 8.3e9) and holds 2.5–3× the entries. The blocks only the wide elements (four
+//! vertices or more) touch are dropped from M, each dropped block B between vertices a and b
+//! replaced by ‖B‖_F I on both diagonals:
+//!
+//! `M₊ = H − Σ [[0, B], [Bᵀ, 0]] + Σ [[‖B‖ I, 0], [0, ‖B‖ I]]`,
+//!
+//! and since [[s I, −B], [−Bᵀ, s I]] ⪰ 0 whenever s ≥ ‖B‖₂ (≤ ‖B‖_F), M₊ ⪰ H for any
+//! symmetric H. The preconditioned CG then converges at a rate set by how much of H's
+//! stiffness the dropped blocks carry: the bending's, small against the membrane and the
+//! inertia on the hanging cloth (the lumps are about 1e-2 of m/h² there; 1.8 CG iterations a
+//! direction).
+//!
+//! The exact Hessian's try needs more than a descent direction: H's own Cholesky factorization
+//! proved H positive definite, and a Newton iteration that skipped that proof could end at a
+//! saddle of the step's objective (CG sees H only along its Krylov space, and the gradient
+//! may have no part along a buckling mode). So that try factors M₋, the kept blocks with the
+//! lumps subtracted from the diagonals instead (M₋ ⪯ H: the same inequality with B's sign
+//! flipped): its success proves H ⪰ M₋ ≻ 0, and it preconditions as well (M₋⁻¹H has its
+//! eigenvalues from 1 up to about 1 + 2·ratio). Its failure, or a direction of
+//! non-positive curvature in CG, counts as "not positive definite", and the caller adds
+//! inertia as it would after a failed factorization of H; it is more cautious than H's own
+//! test only where H's lowest curvature is below the lumps (a few percent of the inertia on
+//! the hanging cloth). Projected Hessians, positive definite by construction, take M₊ (the
+//! lumps added: M₊ ⪰ H, eigenvalues of M₊⁻¹H in (0, 1]).
+//!
+//! Where the dropped stiffness is large against a vertex's inertia m/h² (bending that
+//! dominates at the grid's scale: the hanging cloth at 64² with one step a frame), CG's
+//! iterations grow as √(1 + 2·ratio) and the preconditioner declines: H is factored.
+//!
+//! Everything runs in a fixed order (the product by H row by row, each row's sum in one
+//! order; the dot products sequential), so results are the same bits at any thread count.
+
+use super::factor::Factor;
+use crate::settings::StepError;
+use nalgebra::Vector3;
+use rayon::prelude::*;
+
+/// The preconditioner is built where M's factor costs at most this fraction of H's flops:
+/// the conjugate gradients' products and solves must be paid from the difference.
+pub(super) const ONE_RING_GAIN: f64 = 0.4;
+
+/// ... and where H's factor costs at least this many flops: below it a factorization is too
+/// cheap for the iterations' products and solves to win.
+pub(super) const ONE_RING_MIN_FLOPS: f64 = 1e7;
+
+/// CG stops when the residual's M⁻¹-norm has fallen by this factor (an inexact Newton
+/// method's forcing term, Dembo, Eisenstat & Steihaug 1982: convergence stays fast while the
+/// error left is a thousandth of the step). Measured on cloth_hang (24 frames; Newton
+/// iterations, CG iterations): 1e-3 409, 786; 1e-4 415, 860; 1e-6 428, 1,263; 1e-10 437,
+/// 2,151. Where the cloth starts to buckle (its frame 3) a step's objective has nearby
+/// minima, and which one Newton ends in depends on its path at any forcing: the same solver
+/// with exact directions, at tolerances 1e-4 and 1e-8, ends 1.1e-5 m apart there.
+const RELATIVE: f64 = 1e-3;
+
+/// Products by H over fewer nodes run on the calling thread (a fork–join costs more).
+const PARALLEL_PRODUCT: usize = 8192;
+
+/// Most CG iterations for one direction; beyond them the caller factors H itself.
+pub(super) const MAX_ITERATIONS: usize = 30;
+
+/// Past this max over vertices of (dropped stiffness) / (inertia m/h²) the preconditioner
+/// declines a factorization and H is factored instead: M ⪯ H + 2 diag(lump) ⪯ (1 + 2 ratio)
+/// H where H ⪰ inertia, so CG's iterations grow as √(1 + 2 ratio).
+pub(super) const RATIO_MAX: f64 = 10.0;
+
+/// The same bound for M₋ (the lump subtracted), whose factorization certifies H: past half
+/// the inertia, the lump alone may make M₋ indefinite where H is not.
+pub(super) const CERTIFY_MAX: f64 = 0.5;
+
+/// What a factorization of M gave.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Factored {
+    /// M is positive definite: its factor is ready.
+    Positive,
+    /// M is not positive definite (nor is H: M ⪰ H).
+    NotPositive,
+    /// The dropped blocks are too stiff against the inertia for CG to pay: factor H.
+    Declined,
+}
+
+/// What a preconditioned solve ended with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Outcome {
+    /// The direction is in `dir`.
+    Converged,
+    /// H showed a direction of non-positive curvature: not positive definite.
+    Indefinite,
+    /// The iterations ran out (or a value was not finite): the caller factors H.
+    Failed,
+}
+
+/// The sparser matrix M, its factor, and the conjugate gradients' vectors.
+pub(super) struct OneRing {
+    /// M's pattern (both triangles, 3×3 blocks stored whole, as H's) and values.
+    values: Vec<f64>,
+    /// Per block of M (in `values` order): where the same block starts in H's values.
+    src: Vec<usize>,
+    /// H's dropped blocks, each pair once: (where it starts in H's values, its two nodes).
+    dropped: Vec<(usize, u32, u32)>,
+    /// Per node: where its diagonal block starts in M's values.
+    diag: Vec<usize>,
+    /// Per node: Σ ‖B‖_F over its dropped blocks.
+    lump: Vec<f64>,
+    /// Per node: its inertia m/h² in this step (0 for a rigid group's nodes).
+    inertia: Vec<f64>,
+    /// max over nodes of lump / inertia at the last factorization.
+    pub(super) ratio: f64,
+    /// M's factorization.
+    factor: Factor,
+    r: Vec<f64>,
+    z: Vec<f64>,
+    p: Vec<f64>,
+    q: Vec<f64>,
+}
+
+impl OneRing {
+    /// Builds M for H's pattern (`nbrs`: block neighbours of each node, sorted; `col_ptr`
+    /// its DOF pattern), keeping the pairs `keep` says (sorted block neighbours, a subset of
+    /// `nbrs`, each node's diagonal included). `None` where it does not pay (see
+    /// [`ONE_RING_GAIN`]).
+    pub(super) fn new(
+        nbrs: &[Vec<u32>],
+        col_ptr: &[usize],
+        keep: &[Vec<u32>],
+        h_flops: f64,
+        at: &[Vector3<f64>],
+        may_split: bool,
+        max_bytes: Option<u64>,
+    ) -> Result<Option<Self>, StepError> {
+        if h_flops < ONE_RING_MIN_FLOPS {
+            return Ok(None);
+        }
+        let kept: usize = keep.iter().map(Vec::len).sum();
+        let all: usize = nbrs.iter().map(Vec::len).sum();
+        if kept == all {
+            return Ok(None);
+        }
+        let dofs = 3 * nbrs.len();
+        let mut m_ptr = Vec::with_capacity(dofs + 1);
+        let mut m_row = Vec::with_capacity(9 * kept);
+        m_ptr.push(0);
+        for l in keep {
+            for _ in 0..3 {
+                for &i in l {
+                    m_row.extend((0..3).map(|rr| 3 * i as usize + rr));
+                }
+                m_ptr.push(m_row.len());
+            }
+        }
+        let factor = Factor::new(keep, &m_ptr, &m_row, at, may_split, max_bytes)?;
+        if factor.flops() > ONE_RING_GAIN * h_flops {
+            return Ok(None);
+        }
+        let (mut src, mut dropped, mut diag) = (Vec::with_capacity(kept), Vec::new(), Vec::new());
+        for (v, (all_v, keep_v)) in nbrs.iter().zip(keep).enumerate() {
+            let mut k = 0;
+            for (s, &r) in all_v.iter().enumerate() {
+                let base = col_ptr[3 * v] + 9 * s;
+                if keep_v.get(k) == Some(&r) {
+                    if r as usize == v {
+                        diag.push(m_ptr[3 * v] + 9 * k);
+                    }
+                    src.push(base);
+                    k += 1;
+                } else if (r as usize) < v {
+                    dropped.push((base, r, v as u32));
+                }
+            }
+            debug_assert_eq!(k, keep_v.len(), "keep is a subset of nbrs");
+        }
+        Ok(Some(OneRing {
+            values: vec![0.0; m_row.len()],
+            src,
+            dropped,
+            diag,
+            lump: vec![0.0; nbrs.len()],
+            inertia: vec![0.0; nbrs.len()],
+            ratio: 0.0,
+            factor,
+            r: vec![0.0; dofs],
+            z: vec![0.0; dofs],
+            p: vec![0.0; dofs],
+            q: vec![0.0; dofs],
+        }))
+    }
+
+    /// Sets each node's inertia m/h² for this step's factorizations (`free_of`: each
+    /// vertex's node or `u32::MAX`; a rigid group's nodes get none).
+    pub(super) fn set_inertia(&mut self, free_of: &[u32], mass: &[f64], h: f64) {
+        self.inertia.fill(0.0);
+        for (&f, &m) in free_of.iter().zip(mass) {
+            if let Some(i) = self.inertia.get_mut(f as usize) {
+                *i = m / (h * h);
+            }
+        }
+    }
+
+    /// Gathers M from H's values `h` and factors it: M₊ (the lump added: M₊ ⪰ H), or where
+    /// `certify`, M₋ (the lump subtracted: M₋ ⪯ H), whose success proves H positive definite.
+    pub(super) fn factor(&mut self, h: &[f64], certify: bool) -> Factored {
+        self.lump.fill(0.0);
+        for &(base, a, b) in &self.dropped {
+            let f = h[base..base + 9].iter().map(|v| v * v).sum::<f64>().sqrt();
+            self.lump[a as usize] += f;
+            self.lump[b as usize] += f;
+        }
+        self.ratio = self
+            .lump
+            .iter()
+            .zip(&self.inertia)
+            .filter(|&(_, &m)| m > 0.0)
+            .map(|(l, m)| l / m)
+            .fold(0.0, f64::max);
+        if self.ratio > if certify { CERTIFY_MAX } else { RATIO_MAX } {
+            return Factored::Declined;
+        }
+        let sign = if certify { -1.0 } else { 1.0 };
+        for (block, &s) in self.values.chunks_exact_mut(9).zip(&self.src) {
+            block.copy_from_slice(&h[s..s + 9]);
+        }
+        for (&d, &l) in self.diag.iter().zip(&self.lump) {
+            for c in 0..3 {
+                self.values[d + 4 * c] += sign * l;
+            }
+        }
+        if self.factor.factor(&self.values).is_ok() {
+            Factored::Positive
+        } else {
+            Factored::NotPositive
+        }
+    }
+
+    /// `dir` ← −H⁻¹ `grad` by CG preconditioned with the last factor of M; H is `h` on the
+    /// pattern `col_ptr`/`row_idx`. Returns the outcome and the iterations taken.
+    pub(super) fn solve(
+        &mut self,
+        h: &[f64],
+        col_ptr: &[usize],
+        row_idx: &[usize],
+        grad: &[f64],
+        dir: &mut [f64],
+    ) -> (Outcome, usize) {
+        dir.fill(0.0);
+        for (r, g) in self.r.iter_mut().zip(grad) {
+            *r = -g;
+        }
+        self.z.copy_from_slice(&self.r);
+        self.factor.solve_in_place(&mut self.z);
+        self.p.copy_from_slice(&self.z);
+        let mut rz = dot(&self.r, &self.z);
+        let goal = RELATIVE * RELATIVE * rz;
+        if !rz.is_finite() {
+            return (Outcome::Failed, 0);
+        }
+        if rz <= 0.0 {
+            // A zero gradient: the zero direction is exact.
+            return (Outcome::Converged, 0);
+        }
+        for it in 1..=MAX_ITERATIONS {
+            product(h, col_ptr, row_idx, &self.p, &mut self.q);
+            let pq = dot(&self.p, &self.q);
+            if !pq.is_finite() {
+                return (Outcome::Failed, it);
+            }
+            if pq <= 0.0 {
+                return (Outcome::Indefinite, it);
+            }
+            let alpha = rz / pq;
+            for ((d, r), (p, q)) in dir
+                .iter_mut()
+                .zip(self.r.iter_mut())
+                .zip(self.p.iter().zip(&self.q))
+            {
+                *d += alpha * p;
+                *r -= alpha * q;
+            }
+            self.z.copy_from_slice(&self.r);
+            self.factor.solve_in_place(&mut self.z);
+            let next = dot(&self.r, &self.z);
+            if !next.is_finite() {
+                return (Outcome::Failed, it);
+            }
+            if next <= goal {
+                return (Outcome::Converged, it);
+            }
+            let beta = next / rz;
+            rz = next;
+            for (p, z) in self.p.iter_mut().zip(&self.z) {
+                *p = z + beta * *p;
+            }
+        }
+        (Outcome::Failed, MAX_ITERATIONS)
+    }
+
+    /// Whether M's factor is split in two halves (then steps run on a pool worker).
+    pub(super) fn is_split(&self) -> bool {
+        self.factor.split.is_some()
+    }
+}
+
+/// Σ aᵢ bᵢ in index order.
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// `q` ← H `p` for H on the pattern `col_ptr`/`row_idx` (both triangles, 3×3 blocks stored
+/// whole, column-major). H is symmetric, so node v's rows are its column's blocks
+/// transposed: each node's three entries are summed from its own column alone, in the
+/// column's order, concurrently over nodes and the same bits at any thread count.
+fn product(h: &[f64], col_ptr: &[usize], row_idx: &[usize], p: &[f64], q: &mut [f64]) {
+    let row = |v: usize, qv: &mut [f64]| {
+        let (start, end) = (col_ptr[3 * v], col_ptr[3 * v + 1]);
+        let mut acc = [0.0f64; 3];
+        for (s, k) in (start..end).step_by(3).enumerate() {
+            let r = row_idx[k];
+            let b = &h[start + 9 * s..start + 9 * s + 9];
+            let (x, y, z) = (p[r], p[r + 1], p[r + 2]);
+            // Block (r, v) column-major: entry (rr, cc) at 3cc + rr. Row v of H is column
+            // cc of this block: (Hp)_v,cc += Σ_rr B[rr, cc] p_r,rr.
+            for (cc, a) in acc.iter_mut().enumerate() {
+                *a += b[3 * cc] * x + b[3 * cc + 1] * y + b[3 * cc + 2] * z;
+            }
+        }
+        qv.copy_from_slice(&acc);
+    };
+    if q.len() < 3 * PARALLEL_PRODUCT {
+        q.chunks_exact_mut(3)
+            .enumerate()
+            .for_each(|(v, qv)| row(v, qv));
+    } else {
+        q.par_chunks_mut(3)
+            .with_min_len(PARALLEL_PRODUCT / 4)
+            .enumerate()
+            .for_each(|(v, qv)| row(v, qv));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::integrator::split::tests::pattern;
+
+    /// A random symmetric positive definite matrix on a 1D chain with reach 2 (two-ring),
+    /// kept at reach 1: CG with M converges to H's solution, and M ⪰ H.
+    #[test]
+    fn converges_to_the_solution_of_the_full_system() {
+        let n = 40;
+        let nbrs: Vec<Vec<u32>> = (0..n)
+            .map(|j: usize| {
+                (j.saturating_sub(2)..(j + 3).min(n))
+                    .map(|i| i as u32)
+                    .collect()
+            })
+            .collect();
+        let keep: Vec<Vec<u32>> = (0..n)
+            .map(|j: usize| {
+                (j.saturating_sub(1)..(j + 2).min(n))
+                    .map(|i| i as u32)
+                    .collect()
+            })
+            .collect();
+        let (col_ptr, row_idx) = pattern(&nbrs);
+        // H = diag 10 + small symmetric couplings (a deterministic pseudo-random fill).
+        let mut h = vec![0.0; row_idx.len()];
+        let mut seed = 12345u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+        };
+        for v in 0..n {
+            for (s, &r) in nbrs[v].iter().enumerate() {
+                let r = r as usize;
+                if r > v {
+                    continue;
+                }
+                let base = col_ptr[3 * v] + 9 * s;
+                let mirror = col_ptr[3 * r] + 9 * nbrs[r].binary_search(&(v as u32)).unwrap();
+                for cc in 0..3 {
+                    for rr in 0..3 {
+                        let x = if r == v {
+                            if rr == cc { 10.0 } else { 0.0 }
+                        } else {
+                            rnd()
+                        };
+                        if r == v && rr < cc {
+                            continue;
+                        }
+                        h[base + 3 * cc + rr] = x;
+                        h[mirror + 3 * rr + cc] = x;
+                    }
+                }
+            }
+        }
+        let mut pre = OneRing::new(&nbrs, &col_ptr, &keep, f64::INFINITY, &[], false, None)
+            .unwrap()
+            .expect("pays");
+        assert_eq!(pre.factor(&h, false), Factored::Positive);
+        let grad: Vec<f64> = (0..3 * n).map(|i| (i as f64 * 0.37).sin()).collect();
+        let mut dir = vec![0.0; 3 * n];
+        let (outcome, its) = pre.solve(&h, &col_ptr, &row_idx, &grad, &mut dir);
+        assert_eq!(outcome, Outcome::Converged);
+        assert!(its < 20, "{its} iterations");
+        // CG stops on the residual's M⁻¹-norm (a fall by RELATIVE); M's diagonal here is
+        // within 10 ± 6 per entry, so the Euclidean norm's fall is within a few times that.
+        let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let mut hd = vec![0.0; 3 * n];
+        product(&h, &col_ptr, &row_idx, &dir, &mut hd);
+        let r: Vec<f64> = hd.iter().zip(&grad).map(|(a, g)| a + g).collect();
+        let fall = norm(&r) / norm(&grad);
+        assert!(fall < 5.0 * RELATIVE, "residual fell by {fall:e}");
+        // M ⪰ H: xᵀ(M − H)x ≥ 0 for any x (M's values are H's kept blocks plus the lump).
+        for k in 0..20 {
+            let x: Vec<f64> = (0..3 * n)
+                .map(|i| ((i * (k + 3)) as f64 * 0.71).cos())
+                .collect();
+            let (mut hx, mut mx) = (vec![0.0; 3 * n], vec![0.0; 3 * n]);
+            product(&h, &col_ptr, &row_idx, &x, &mut hx);
+            let (m_ptr, m_row) = pattern(&keep);
+            product(&pre.values, &m_ptr, &m_row, &x, &mut mx);
+            let gap = dot(&x, &mx) - dot(&x, &hx);
+            assert!(gap >= -1e-12 * dot(&x, &mx), "xᵀMx − xᵀHx = {gap:e}");
+        }
+    }
+}
