@@ -10,11 +10,12 @@
 //! iteration converge from any start. The exact Hessian converges faster (quadratically
 //! where projection drops the negative stiffness of buckling cloth): it is used whenever its
 //! Cholesky factorization succeeds, which proves it positive definite, so every direction
-//! still descends. The sparsity pattern (3×3 blocks between vertices that
+//! still descends (with the one-ring preconditioner, `one_ring.rs`, the factorization of a
+//! sparser matrix below it gives that proof, and conjugate gradients the direction). The sparsity pattern (3×3 blocks between vertices that
 //! share an element) and the symbolic Cholesky analysis are built once per system; each
 //! iteration only refills values and refactors numerically, into buffers allocated once.
 //!
-//! Why one file of about 1200 lines: it is one type, the [`Integrator`], whose pattern, slots,
+//! Why one file of about 1500 lines: it is one type, the [`Integrator`], whose pattern, slots,
 //! assembly tree and factor buffers are built together in `new_within` and used together by
 //! assembly and the Newton loop; splitting it would spread those invariants over files. Its
 //! settings, statistics and errors are in `settings.rs`.

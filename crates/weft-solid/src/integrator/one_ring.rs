@@ -52,8 +52,8 @@ pub(super) const ONE_RING_GAIN: f64 = 0.4;
 /// CG stops when the residual's M⁻¹-norm has fallen by this factor (an inexact Newton
 /// method's forcing term, Dembo, Eisenstat & Steihaug 1982: convergence stays fast while the
 /// error left is a thousandth of the step). Measured on cloth_hang (24 frames; Newton
-/// iterations, CG iterations): 1e-3 409, 786; 1e-4 415, 860; 1e-6 428, 1,263; 1e-10 437,
-/// 2,151. Where the cloth starts to buckle (its frame 3) a step's objective has nearby
+/// iterations, CG iterations): 1e-3 409, 786; 1e-10 437, 2,151; before the exact Hessian's
+/// try took M₋ (every try with M₊): 1e-3 413, 764; 1e-4 415, 860; 1e-6 428, 1,263. Where the cloth starts to buckle (its frame 3) a step's objective has nearby
 /// minima, and which one Newton ends in depends on its path at any forcing: the same solver
 /// with exact directions, at tolerances 1e-4 and 1e-8, ends 1.1e-5 m apart there.
 const RELATIVE: f64 = 1e-3;
