@@ -264,7 +264,7 @@ impl SolidStepper {
                 stats.factor_seconds += s.factor_seconds;
                 stats.factorizations += s.factorizations;
                 stats.solve_seconds += s.solve_seconds;
-                stats.cg_iterations += s.pcg_iterations;
+                stats.cg_iterations += s.cg_iterations;
                 stats.inertia_shifts += s.shifted;
                 stats.projected_iterations += s.projected;
                 stats.corrections += s.corrections;

@@ -148,9 +148,8 @@ pub struct Integrator {
     factor: Factor,
     /// Where the pattern holds the two-ring of wide elements (shell bending) and a factor of
     /// its one-ring costs much less: that sparser matrix, preconditioning conjugate
-    /// gradients on H in the steps' Newton iterations (`one_ring.rs`). The contact step
-    /// factors H itself.
-    /// Built at the first step that uses it: a contact step never does (a rebuild for its
+    /// gradients on H in the steps' Newton iterations (`one_ring.rs`). Built at the first
+    /// step that uses it; a contact step never does (it factors H, and a rebuild for its
     /// contacts' blocks starts a new integrator without it).
     one_ring: Option<one_ring::OneRing>,
     /// Whether `one_ring` was built (or found not to pay) for this pattern.
@@ -733,7 +732,7 @@ impl Integrator {
                 &mut self.dir,
             );
             stats.solve_seconds += t.elapsed().as_secs_f64();
-            stats.pcg_iterations += its;
+            stats.cg_iterations += its;
             match outcome {
                 one_ring::Outcome::Converged => return true,
                 one_ring::Outcome::Indefinite => return false,

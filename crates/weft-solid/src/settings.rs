@@ -69,7 +69,7 @@ pub struct StepStats {
     /// Seconds in triangular solves (and the one-ring preconditioner's conjugate gradients).
     pub solve_seconds: f64,
     /// Conjugate-gradient iterations of the one-ring preconditioner, summed over directions.
-    pub pcg_iterations: usize,
+    pub cg_iterations: usize,
     /// Factorizations retried with added inertia because the exact Hessian was not
     /// positive definite ([`Method::Newton`]).
     pub shifted: usize,
@@ -95,7 +95,7 @@ impl StepStats {
         self.factor_seconds += earlier.factor_seconds;
         self.factorizations += earlier.factorizations;
         self.solve_seconds += earlier.solve_seconds;
-        self.pcg_iterations += earlier.pcg_iterations;
+        self.cg_iterations += earlier.cg_iterations;
         self.shifted += earlier.shifted;
         self.projected += earlier.projected;
         self.corrections += earlier.corrections;
