@@ -313,15 +313,14 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 fn product(h: &[f64], col_ptr: &[usize], row_idx: &[usize], p: &[f64], q: &mut [f64]) {
     let row = |v: usize, qv: &mut [f64]| {
         let (start, end) = (col_ptr[3 * v], col_ptr[3 * v + 1]);
+        let blocks = h[start..start + 3 * (end - start)].chunks_exact(9);
         let mut acc = [0.0f64; 3];
-        for (s, k) in (start..end).step_by(3).enumerate() {
-            let r = row_idx[k];
-            let b = &h[start + 9 * s..start + 9 * s + 9];
-            let (x, y, z) = (p[r], p[r + 1], p[r + 2]);
+        for (b, &r) in blocks.zip(row_idx[start..end].iter().step_by(3)) {
+            let pr = &p[r..r + 3];
             // Block (r, v) column-major: entry (rr, cc) at 3cc + rr. Row v of H is column
             // cc of this block: (Hp)_v,cc += Σ_rr B[rr, cc] p_r,rr.
             for (cc, a) in acc.iter_mut().enumerate() {
-                *a += b[3 * cc] * x + b[3 * cc + 1] * y + b[3 * cc + 2] * z;
+                *a += b[3 * cc] * pr[0] + b[3 * cc + 1] * pr[1] + b[3 * cc + 2] * pr[2];
             }
         }
         qv.copy_from_slice(&acc);
@@ -425,5 +424,85 @@ mod tests {
             let gap = dot(&x, &mx) - dot(&x, &hx);
             assert!(gap >= -1e-12 * dot(&x, &mx), "xᵀMx − xᵀHx = {gap:e}");
         }
+    }
+
+    /// The product by H splits its rows over threads from `PARALLEL_PRODUCT` nodes; each row
+    /// is summed on one thread in one order, so 1 and 3 threads give the same bits.
+    #[test]
+    fn the_product_is_the_same_bits_at_any_thread_count() {
+        let n = PARALLEL_PRODUCT + 500;
+        let nbrs: Vec<Vec<u32>> = (0..n)
+            .map(|j: usize| {
+                (j.saturating_sub(2)..(j + 3).min(n))
+                    .map(|i| i as u32)
+                    .collect()
+            })
+            .collect();
+        let (col_ptr, row_idx) = pattern(&nbrs);
+        let h: Vec<f64> = (0..row_idx.len())
+            .map(|i| (i as f64 * 0.013).sin())
+            .collect();
+        let p: Vec<f64> = (0..3 * n).map(|i| (i as f64 * 0.7).cos()).collect();
+        let run = |threads| {
+            let mut q = vec![0.0; 3 * n];
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| product(&h, &col_ptr, &row_idx, &p, &mut q));
+            q
+        };
+        let one = run(1);
+        assert!(
+            one.iter()
+                .zip(run(3))
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+        );
+    }
+
+    /// A hanging sheet with shell bending (its pattern is the two-ring): the integrator builds
+    /// the preconditioner, its steps take CG directions, and they end where steps that factor
+    /// H end, to the tolerance's scale (each step solved to 1e-6 m/s: positions within
+    /// 1e-6 · h a step; the first steps, before any buckling).
+    #[test]
+    fn a_shell_steps_to_the_same_answer_as_with_the_factor_of_h() {
+        use crate::energy::{MembraneMaterial, shell_bending};
+        use crate::integrator::{Integrator, Settings};
+        let k = 16;
+        let mat = MembraneMaterial::orthotropic(2e6, 0.3, 5e-4, 1.0, 1.0, 1.0);
+        let (mut sys, state) =
+            crate::verify::membrane_sheet(k, k, 1.0, 1.0, mat, Vector3::x()).unwrap();
+        let tris: Vec<[u32; 3]> = sys.elements.membranes.iter().map(|m| m.v).collect();
+        let bending = shell_bending(&state.x, &tris, 1e-6, 0.3).unwrap();
+        sys.elements.shells = bending.vertices;
+        sys.elements.midedges = bending.triangles;
+        sys.gravity = Vector3::new(0.0, 0.0, -9.81);
+        sys.pinned[0] = true;
+        sys.pinned[k - 1] = true;
+        sys.layout = state.x.clone();
+        let settings = Settings {
+            tolerance: 1e-6,
+            ..Settings::default()
+        };
+        let h = 1.0 / 48.0;
+        let (mut with, mut without) = (
+            Integrator::new(&sys).unwrap(),
+            Integrator::new(&sys).unwrap(),
+        );
+        without.one_ring_tried = true;
+        let (mut a, mut b) = (state.clone(), state.clone());
+        let steps = 4;
+        let mut cg = 0;
+        for _ in 0..steps {
+            cg += with
+                .step(&sys, &mut a, None, h, &settings)
+                .unwrap()
+                .cg_iterations;
+            without.step(&sys, &mut b, None, h, &settings).unwrap();
+        }
+        assert!(with.one_ring.is_some() && without.one_ring.is_none());
+        assert!(cg > 0, "no CG iterations");
+        let far = crate::integrator::order::tests::farthest(&a, &b);
+        assert!(far < 1e-6 * h * steps as f64, "{far:e} m apart");
     }
 }
