@@ -53,9 +53,10 @@ pub(super) const ONE_RING_GAIN: f64 = 0.4;
 /// method's forcing term, Dembo, Eisenstat & Steihaug 1982: convergence stays fast while the
 /// error left is a thousandth of the step). Measured on cloth_hang (24 frames; Newton
 /// iterations, CG iterations): 1e-3 409, 786; 1e-10 437, 2,151; before the exact Hessian's
-/// try took M₋ (every try with M₊): 1e-3 413, 764; 1e-4 415, 860; 1e-6 428, 1,263. Where the cloth starts to buckle (its frame 3) a step's objective has nearby
-/// minima, and which one Newton ends in depends on its path at any forcing: the same solver
-/// with exact directions, at tolerances 1e-4 and 1e-8, ends 1.1e-5 m apart there.
+/// try took M₋ (every try with M₊): 1e-3 413, 764; 1e-4 415, 860; 1e-6 428, 1,263. Where
+/// the cloth starts to buckle (its frame 3) a step's objective has nearby minima, and which
+/// one Newton ends in depends on its path at any forcing: the same solver with exact
+/// directions, at tolerances 1e-4 and 1e-8, ends 1.1e-5 m apart there.
 const RELATIVE: f64 = 1e-3;
 
 /// Products by H over fewer nodes run on the calling thread (a fork–join costs more).
@@ -65,7 +66,7 @@ const PARALLEL_PRODUCT: usize = 8192;
 pub(super) const MAX_ITERATIONS: usize = 30;
 
 /// Past this max over vertices of (dropped stiffness) / (inertia m/h²) the preconditioner
-/// declines a factorization and H is factored instead: M ⪯ H + 2 diag(lump) ⪯ (1 + 2 ratio)
+/// declines a factorization and H is factored instead: M₊ ⪯ H + 2 diag(lump) ⪯ (1 + 2 ratio)
 /// H where H ⪰ inertia, so CG's iterations grow as √(1 + 2 ratio).
 pub(super) const RATIO_MAX: f64 = 10.0;
 
@@ -78,7 +79,8 @@ pub(super) const CERTIFY_MAX: f64 = 0.5;
 pub(super) enum Factored {
     /// M is positive definite: its factor is ready.
     Positive,
-    /// M is not positive definite (nor is H: M ⪰ H).
+    /// M is not positive definite: for M₊ ⪰ H, neither is H; for M₋ nothing is proved, and
+    /// the caller adds inertia as if H were not.
     NotPositive,
     /// The dropped blocks are too stiff against the inertia for CG to pay: factor H.
     Declined,
@@ -110,7 +112,7 @@ pub(super) struct OneRing {
     /// Per node: its inertia m/h² in this step (0 for a rigid group's nodes).
     inertia: Vec<f64>,
     /// max over nodes of lump / inertia at the last factorization.
-    pub(super) ratio: f64,
+    ratio: f64,
     /// M's factorization.
     factor: Factor,
     r: Vec<f64>,
