@@ -125,6 +125,21 @@ pub(super) fn block_entry(col_ptr: &[usize], v: usize, s: usize, rr: usize, cc: 
     col_ptr[3 * v] + 9 * s + 3 * cc + rr
 }
 
+/// Where the first `vertices` free nodes sit (`free_of`: each vertex's node), from the
+/// system's layout; empty without one. For dissection and the split.
+fn free_layout(sys: &SolidSystem, free_of: &[u32], vertices: usize) -> Vec<Vector3<f64>> {
+    if sys.layout.len() != free_of.len() {
+        return Vec::new();
+    }
+    let mut at = vec![Vector3::zeros(); vertices];
+    for (v, &f) in free_of.iter().enumerate() {
+        if let Some(p) = at.get_mut(f as usize) {
+            *p = sys.layout[v];
+        }
+    }
+    at
+}
+
 /// What is minimized: the incremental potential of a time step, or the static potential.
 #[derive(Clone, Copy)]
 enum Mode {
@@ -390,16 +405,7 @@ impl Integrator {
         let diag_slot = (0..n_free)
             .map(|j| nbrs[j].binary_search(&(j as u32)).expect("diagonal") as u32)
             .collect();
-        // Where the free vertices sit (empty without a layout): for dissection and the split.
-        let mut at = Vec::new();
-        if sys.layout.len() == n {
-            at = vec![Vector3::zeros(); n_vertices];
-            for (v, &f) in free_of.iter().enumerate() {
-                if let Some(p) = at.get_mut(f as usize) {
-                    *p = sys.layout[v];
-                }
-            }
-        }
+        let at = free_layout(sys, &free_of, n_vertices);
         // Not split with rigid groups (their nodes couple every member).
         let may_split = sys.rigid.is_empty() && !whole_only;
         let factor = Factor::new(&nbrs, &col_ptr, &row_idx, &at, may_split, max_bytes)?;
@@ -1168,15 +1174,7 @@ impl Integrator {
             l.sort_unstable();
             l.dedup();
         }
-        let mut at = Vec::new();
-        if sys.layout.len() == self.n {
-            at = vec![Vector3::zeros(); first];
-            for (v, &f) in self.free_of.iter().enumerate() {
-                if let Some(p) = at.get_mut(f as usize) {
-                    *p = sys.layout[v];
-                }
-            }
-        }
+        let at = free_layout(sys, &self.free_of, first);
         one_ring::OneRing::new(
             &nbrs,
             &self.col_ptr,

@@ -344,25 +344,24 @@ mod tests {
     use super::*;
     use crate::integrator::split::tests::pattern;
 
+    /// The block graph of a chain of `n` nodes, each neighbouring those within `reach`.
+    fn chain(n: usize, reach: usize) -> Vec<Vec<u32>> {
+        (0..n)
+            .map(|j| {
+                (j.saturating_sub(reach)..(j + reach + 1).min(n))
+                    .map(|i| i as u32)
+                    .collect()
+            })
+            .collect()
+    }
+
     /// A random symmetric positive definite matrix on a 1D chain with reach 2 (two-ring),
     /// kept at reach 1: CG with M converges to H's solution, and M ⪰ H.
     #[test]
     fn converges_to_the_solution_of_the_full_system() {
         let n = 40;
-        let nbrs: Vec<Vec<u32>> = (0..n)
-            .map(|j: usize| {
-                (j.saturating_sub(2)..(j + 3).min(n))
-                    .map(|i| i as u32)
-                    .collect()
-            })
-            .collect();
-        let keep: Vec<Vec<u32>> = (0..n)
-            .map(|j: usize| {
-                (j.saturating_sub(1)..(j + 2).min(n))
-                    .map(|i| i as u32)
-                    .collect()
-            })
-            .collect();
+        let nbrs = chain(n, 2);
+        let keep = chain(n, 1);
         let (col_ptr, row_idx) = pattern(&nbrs);
         // H = diag 10 + small symmetric couplings (a deterministic pseudo-random fill).
         let mut h = vec![0.0; row_idx.len()];
@@ -433,13 +432,7 @@ mod tests {
     #[test]
     fn the_product_is_the_same_bits_at_any_thread_count() {
         let n = PARALLEL_PRODUCT + 500;
-        let nbrs: Vec<Vec<u32>> = (0..n)
-            .map(|j: usize| {
-                (j.saturating_sub(2)..(j + 3).min(n))
-                    .map(|i| i as u32)
-                    .collect()
-            })
-            .collect();
+        let nbrs = chain(n, 2);
         let (col_ptr, row_idx) = pattern(&nbrs);
         let h: Vec<f64> = (0..row_idx.len())
             .map(|i| (i as f64 * 0.013).sin())
