@@ -2,7 +2,7 @@
 answers (issue 16, item 1).
 
     python3 bench/peers/peers.py [ribbon|cantilever|square ...] [--quick] [--blender blender]
-                                 [--weft target/release/weft] [--out bench-out/peers]
+                                 [--weft target/release/weft] [--out bench-out/peers] [--repeat N]
 
 Scenes (all by default):
 - ribbon: a near-inextensible ribbon 1.2 m long, 2 cm wide, hung by its end columns 1 m apart,
@@ -25,8 +25,8 @@ start-up nor the reading of its vertices; Weft's graph evaluation of the frames 
 start frame (where it compiles the system), from its --stats-json, without its output
 nodes' share (the OBJ files a scene reads its meshes from), the process's start and the
 graph file's parse. Each process's whole wall time is in the CSV
-too. Sweeps: resolution for both; Weft's substeps, tolerance, method and (on the square)
-integrator; Blender's quality (steps a frame) and membrane stiffness. Blender's stiffnesses come from the material by the formulas of
+too. Sweeps: resolution for both; Weft's substeps, tolerance, method, (on the square)
+integrator and (on the ribbon) membrane stiffness; Blender's quality (steps a frame) and membrane stiffness. Blender's stiffnesses come from the material by the formulas of
 its source (see `blender_material`), not from fitting its answer to the reference.
 
 Writes OUT/SCENE.csv and OUT/SCENE.svg (error against time, log–log) for every scene and prints
@@ -40,6 +40,7 @@ import json
 import math
 import pathlib
 import shutil
+import statistics
 import subprocess
 import tempfile
 import time
@@ -156,6 +157,13 @@ class Ribbon(Settling):
 
     def sizes(self, quick):
         return [10, 20] if quick else [10, 20, 40, 80, 160]
+
+    def weft_settings(self, quick):
+        """The common sweep, and the membrane stiffer (×2, ×10), as Blender's stiffness is
+        swept: the ribbon's own stretch under its weight (3e-5 m at E t = 100 kN/m) is part
+        of its error at 10 and 20 segments."""
+        common = common_weft_settings(quick)
+        return common if quick else common + [{"substeps": 1, "membrane": 2}, {"substeps": 1, "membrane": 10}]
 
     def reference(self, runner):
         lo, hi = 1e-3, 1e3
@@ -364,7 +372,12 @@ class Runner:
         for k, v in w["set"].items():
             cmd += ["--set", f"{k}={json.dumps(v)}"]
         for k, v in setting.items():
-            cmd += ["--set", f"solve.{k}={v}"]
+            if k == "membrane":
+                # The membrane stiffer by v at the same bending stiffness D ∝ E · bend_scale.
+                cmd += ["--set", f"shell.youngs_modulus={json.dumps(w['set']['shell.youngs_modulus'] * v)}",
+                        "--set", f"shell.bend_scale={json.dumps(w['set']['shell.bend_scale'] / v)}"]
+            else:
+                cmd += ["--set", f"solve.{k}={v}"]
         # One vertex at the last frame is an output; more are read from the written meshes.
         probe = w["info"].get("probe")
         cmd += ["--output", "obj"] if probe is None else ["--set", f"probe.index={probe}", "--output", "probe"]
@@ -421,6 +434,12 @@ def weft_settings(scene, quick):
     """solver.solid settings swept; a scene may choose its own."""
     if hasattr(scene, "weft_settings"):
         return scene.weft_settings(quick)
+    return common_weft_settings(quick)
+
+
+def common_weft_settings(quick):
+    """The settings every scene sweeps unless it chooses its own ("membrane": the membrane
+    stiffness multiplied, see `Runner.weft`)."""
     if quick:
         return [{"substeps": 1}, {"substeps": 4}]
     return [{"substeps": 1}, {"substeps": 2}, {"substeps": 4}, {"substeps": 1, "tolerance": 1e-6},
@@ -491,17 +510,28 @@ def against_blender(pts):
     return out
 
 
+def repeated(run, times):
+    """`run()` → (value, seconds, error, wall) `times` times: the first run's value and error
+    (both solvers are deterministic), the median seconds and wall time (single runs of a few
+    milliseconds vary by tens of percent on a busy machine)."""
+    runs = [run() for _ in range(times)]
+    if runs[0][0] is None:
+        return runs[0]
+    return runs[0][0], statistics.median(r[1] for r in runs), runs[0][2], statistics.median(r[3] for r in runs)
+
+
 def run_scene(scene, runner, quick):
     ref = scene.reference(runner)
     rows = []
+    times = runner.args.repeat
     for n in scene.sizes(quick):
         for setting in weft_settings(scene, quick):
-            value, s, err, wall = runner.weft(scene, n, setting)
+            value, s, err, wall = repeated(lambda: runner.weft(scene, n, setting), times)
             label = ", ".join(f"{k} {v}" for k, v in setting.items())
             rows.append(("weft", n, label, value, s, err, wall))
         if runner.blender:
             for quality, stiffness in blender_settings(scene, n, quick):
-                value, s, err, wall = runner.blender_run(scene, n, quality, stiffness)
+                value, s, err, wall = repeated(lambda: runner.blender_run(scene, n, quality, stiffness), times)
                 rows.append(("blender", n, f"quality {quality}, membrane ×{stiffness:g}", value, s, err, wall))
     pts = [(r[0], r[1], r[2], scene.error(r[3], ref) if r[3] is not None else None, r[4]) for r in rows]
     with open(runner.out / f"{scene.name}.csv", "w", newline="") as f:
@@ -536,6 +566,8 @@ def main():
     p.add_argument("--blender", default="blender")
     p.add_argument("--weft", default=str(HERE.parents[1] / "target/release/weft"))
     p.add_argument("--out", default="bench-out/peers")
+    p.add_argument("--repeat", type=int, default=1, metavar="N",
+                   help="run each setting N times and keep the median time (default 1)")
     a = p.parse_args()
     unknown = [s for s in a.scenes if s not in SCENES]
     if unknown:
