@@ -676,7 +676,10 @@ impl Integrator {
     }
 
     fn shift_diagonal(&mut self, mu: f64) {
-        self.add_to_diagonal(|_| mu);
+        // Adding zero changes no entry: skip the pass (every factorization asks for it).
+        if mu != 0.0 {
+            self.add_to_diagonal(|_| mu);
+        }
     }
 
     /// Adds `mu(i)` to the three diagonal entries of every free vertex i (and through J to
@@ -801,11 +804,6 @@ impl Integrator {
     /// Factorizes `values` + `shift`·I (growing the shift as [`Self::newton_direction`] says).
     fn factor(&mut self, stats: &mut StepStats, shift: f64) -> Result<(), StepError> {
         let t = Instant::now();
-        let scale = self
-            .values
-            .iter()
-            .fold(0.0f64, |m, v| m.max(v.abs()))
-            .max(f64::MIN_POSITIVE);
         let mut applied = shift;
         self.shift_diagonal(shift);
         let mut tries = 0;
@@ -826,7 +824,10 @@ impl Integrator {
                 }
                 Err(_) => {
                     let more = if applied == 0.0 {
-                        1e-10 * scale
+                        // The matrix is still unshifted here: its largest entry sets the
+                        // first shift (taken only on failure: a pass over every value).
+                        let scale = self.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                        1e-10 * scale.max(f64::MIN_POSITIVE)
                     } else {
                         99.0 * applied
                     };
