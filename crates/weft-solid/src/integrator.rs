@@ -32,7 +32,7 @@ mod sliding;
 mod solve;
 mod split;
 
-use crate::energy::Local;
+use crate::energy::{Local, SharedHinges};
 pub use crate::settings::{Method, Settings, StepError, StepStats, StopCheck};
 use crate::system::{SolidSystem, State, SystemError};
 pub use contacts::{CONTACT_VERTICES, Contact, ContactSet, ContactStats};
@@ -192,6 +192,10 @@ pub struct Integrator {
     /// Per element scratch (energies, gradient magnitudes), summed in element order so every
     /// total is bit-identical at any thread count.
     per_element: RefCell<Vec<f64>>,
+    /// The midedge bending elements' hinges, each computed once an evaluation instead of
+    /// once from each side (`SharedHinges`), and those elements' range of element indices.
+    hinges: Option<RefCell<SharedHinges>>,
+    midedges: std::ops::Range<usize>,
     /// Σ |gradient entries| of every term at the last assembly: with the size of the
     /// positions it bounds the floating-point resolution of the objective.
     force_scale: f64,
@@ -463,6 +467,13 @@ impl Integrator {
             slide_scale: Vec::new(),
             slide_normal: Vec::new(),
             per_element: RefCell::new(vec![0.0; slot_offset.len()]),
+            hinges: (!sys.elements.midedges.is_empty())
+                .then(|| RefCell::new(SharedHinges::new(&sys.elements.midedges))),
+            midedges: {
+                let e = &sys.elements;
+                let start = e.membranes.len() + e.hinges.len() + e.shells.len();
+                start..start + e.midedges.len()
+            },
             whole_only,
             joined_max: contacts::JOINED_MAX,
             slot_offset,
@@ -513,16 +524,30 @@ impl Integrator {
             }
         }
         let mut per = self.per_element.borrow_mut();
-        if per.len() >= PARALLEL_MIN && rayon::current_num_threads() > 1 {
+        let parallel = per.len() >= PARALLEL_MIN && rayon::current_num_threads() > 1;
+        if let Some(h) = &self.hinges {
+            let mut h = h.borrow_mut();
+            let par = parallel && h.len() >= PARALLEL_MIN;
+            h.update(x, false, par);
+        }
+        let hinges = self.hinges.as_ref().map(|h| h.borrow());
+        let hinges = hinges.as_deref();
+        let midedges = &self.midedges;
+        let energy = |i: usize| match hinges.filter(|_| midedges.contains(&i)) {
+            Some(h) => {
+                let k = i - midedges.start;
+                h.energy(k, &sys.elements.midedges[k])
+            }
+            None => sys.elements.get(i).energy(x),
+        };
+        if parallel {
             per.par_iter_mut()
                 .enumerate()
-                .for_each(|(i, pe)| *pe = sys.elements.get(i).energy(x));
+                .for_each(|(i, pe)| *pe = energy(i));
         } else {
-            let mut i = 0;
-            sys.elements.for_each(|el| {
-                per[i] = el.energy(x);
-                i += 1;
-            });
+            for (i, pe) in per.iter_mut().enumerate() {
+                *pe = energy(i);
+            }
         }
         // Summed in element order: the same bits at any thread count.
         let e = per.iter().fold(e, |a, b| a + b);
@@ -584,23 +609,40 @@ impl Integrator {
             }
             self.force_scale += g.abs().sum();
         }
+        let parallel = rayon::current_num_threads() > 1;
+        if let Some(h) = self.hinges.as_mut() {
+            let h = h.get_mut();
+            let par = parallel && h.len() >= PARALLEL_MIN;
+            h.update(x, true, par);
+        }
         let values = Shared(self.values.as_mut_ptr());
         let grad = Shared(self.grad.as_mut_ptr());
         let mut per = self.per_element.borrow_mut();
         let scale = Shared(per.as_mut_ptr());
         let (free_of, col_ptr, slots, offsets) =
             (&self.free_of, &self.col_ptr, &self.slots, &self.slot_offset);
+        let hinges_ref = self.hinges.as_ref().map(|h| h.borrow());
+        let hinges = hinges_ref.as_deref();
+        let midedges = &self.midedges;
         let work = |&ei: &u32| {
             LOCAL.with(|l| {
                 let local = &mut **l.borrow_mut();
                 let ei = ei as usize;
                 let el = sys.elements.get(ei);
+                // Midedge bending's Hessian is its Gauss–Newton term in both modes.
+                match (hinges.filter(|_| midedges.contains(&ei)), hessians) {
+                    (Some(h), _) => {
+                        let k = ei - midedges.start;
+                        h.eval(k, &sys.elements.midedges[k], local);
+                    }
+                    (None, Hessians::Projected) => el.eval(x, true, local),
+                    (None, Hessians::First) => el.eval_first(x, local),
+                }
                 // SAFETY: see `Shared`: elements run concurrently write disjoint entries, and
                 // `per_element[ei]` belongs to this element alone.
                 unsafe {
                     scatter(
-                        el,
-                        x,
+                        el.vertices(),
                         local,
                         free_of,
                         col_ptr,
@@ -608,13 +650,13 @@ impl Integrator {
                         values,
                         grad,
                         scale.at(ei),
-                        hessians,
                     )
                 };
             })
         };
-        self.parts.run(&work, rayon::current_num_threads() > 1);
+        self.parts.run(&work, parallel);
         drop(per);
+        drop(hinges_ref);
         if !self.groups.is_empty() {
             // Elements with a member: through the groups' Jacobians, in element order.
             // The scratch moves out by its box (a `Local` is 73 kB: moving it by value per
@@ -1452,31 +1494,24 @@ impl Integrator {
     }
 }
 
-/// Evaluates one element at `x` into `local` and adds its gradient and its `hessians` Hessian
-/// into the shared arrays; `scale` receives Σ|gradient entries|.
+/// Adds one element's gradient and Hessian, evaluated into `local` on the stencil `v`, into
+/// the shared arrays; `scale` receives Σ|gradient entries|.
 ///
 /// # Safety
 /// No other thread may write the entries this element touches while it runs (the assembly
 /// tree guarantees it), and the pointers must cover the integrator's arrays.
 #[allow(clippy::too_many_arguments)]
 unsafe fn scatter(
-    el: &dyn crate::energy::Element,
-    x: &[Vector3<f64>],
-    local: &mut Local,
+    v: &[u32],
+    local: &Local,
     free_of: &[u32],
     col_ptr: &[usize],
     slots: &[u32],
     values: Shared,
     grad: Shared,
     scale: *mut f64,
-    hessians: Hessians,
 ) {
-    let v = el.vertices();
     let k = v.len();
-    match hessians {
-        Hessians::Projected => el.eval(x, true, local),
-        Hessians::First => el.eval_first(x, local),
-    }
     unsafe {
         *scale = local.grad[..3 * k].iter().map(|g| g.abs()).sum::<f64>();
         for (a, &va) in v.iter().enumerate() {

@@ -225,7 +225,6 @@ impl Element for MidedgeBend {
     }
     #[allow(clippy::needless_range_loop)] // stencil index arithmetic
     fn eval(&self, x: &[Vector3<f64>], project: bool, out: &mut Local) {
-        let dofs = 3 * self.len as usize;
         // φₖ and ∇θₖ (spread over the stencil's DOFs) from one pass over each hinge.
         let mut phi = [0.0; 3];
         let mut g = [[0.0; 18]; 3];
@@ -243,27 +242,7 @@ impl Element for MidedgeBend {
                 }
             }
         }
-        let (f, e) = self.quad(&phi);
-        out.dofs = dofs;
-        out.energy = e;
-        for i in 0..dofs {
-            out.grad[i] = (0..3).map(|k| f[k] * g[k][i]).sum();
-        }
-        // Gauss–Newton part Σₖₗ Bₖₗ ∇θₖ∇θₗᵀ = V Vᵀ with V = G L (G's columns the ∇θₖ):
-        // the lower half, mirrored.
-        let mut v = [[0.0; 3]; 18];
-        for (i, vi) in v.iter_mut().enumerate().take(dofs) {
-            for (m, vim) in vi.iter_mut().enumerate() {
-                *vim = (0..3).map(|k| g[k][i] * self.l[k][m]).sum();
-            }
-        }
-        for c in 0..dofs {
-            for r in c..dofs {
-                let h = v[c][0] * v[r][0] + v[c][1] * v[r][1] + v[c][2] * v[r][2];
-                out.hess[c][r] = h;
-                out.hess[r][c] = h;
-            }
-        }
+        let f = self.gauss_newton(&phi, &g, out);
         if !project {
             // Curvature part Σₖ (Bφ)ₖ ∇²θₖ, ∇²θₖ column by column by dual numbers.
             for k in 0..3 {
@@ -289,6 +268,213 @@ impl Element for MidedgeBend {
         if let Some(dr) = self.dropoff {
             dr.apply(out);
         }
+    }
+}
+
+impl MidedgeBend {
+    /// Energy ½ φᵀBφ, its gradient Σₖ (Bφ)ₖ ∇θₖ and the Gauss–Newton Hessian
+    /// Σₖₗ Bₖₗ ∇θₖ∇θₗᵀ from the angle differences `phi` and the gradients `g` of the edge
+    /// angles (spread over the stencil's DOFs); returns Bφ.
+    #[allow(clippy::needless_range_loop)] // stencil index arithmetic
+    fn gauss_newton(&self, phi: &[f64; 3], g: &[[f64; 18]; 3], out: &mut Local) -> [f64; 3] {
+        let dofs = 3 * self.len as usize;
+        let (f, e) = self.quad(phi);
+        out.dofs = dofs;
+        out.energy = e;
+        for i in 0..dofs {
+            out.grad[i] = (0..3).map(|k| f[k] * g[k][i]).sum();
+        }
+        // Σₖₗ Bₖₗ ∇θₖ∇θₗᵀ = V Vᵀ with V = G L (G's columns the ∇θₖ): the lower half, mirrored.
+        let mut v = [[0.0; 3]; 18];
+        for (i, vi) in v.iter_mut().enumerate().take(dofs) {
+            for (m, vim) in vi.iter_mut().enumerate() {
+                *vim = (0..3).map(|k| g[k][i] * self.l[k][m]).sum();
+            }
+        }
+        for c in 0..dofs {
+            for r in c..dofs {
+                let h = v[c][0] * v[r][0] + v[c][1] * v[r][1] + v[c][2] * v[r][2];
+                out.hess[c][r] = h;
+                out.hess[r][c] = h;
+            }
+        }
+        f
+    }
+}
+
+/// Where a triangle's hinge finds its angle in [`SharedHinges`]: the table's hinge
+/// (`index`) seen in the element's vertex order (`orient`, see [`ORIENT`]).
+#[derive(Clone, Copy, Debug)]
+struct HingeRef {
+    index: u32,
+    orient: u8,
+}
+
+/// For each orientation of a hinge [e₀, e₁, w₀, w₁] (edge, then the wing on each side) as
+/// an element lists it against the table's: which of the table's four vertices is the
+/// element's j-th, and the sign of the angle. The angle is the same with edge and wings
+/// both reversed (the other side's element, where the two triangles are oriented alike) and
+/// changes sign with either alone (wings alone: the other side's, oriented unlike; the edge
+/// alone does not arise from two triangles, each listing its own vertex before the wing).
+const ORIENT: [([usize; 4], f64); 4] = [
+    ([0, 1, 2, 3], 1.0),
+    ([1, 0, 3, 2], 1.0),
+    ([0, 1, 3, 2], -1.0),
+    ([1, 0, 2, 3], -1.0),
+];
+
+/// The hinges (interior edges) of a set of [`MidedgeBend`] elements, each once, and their
+/// angles and angle gradients at the positions last given to [`Self::update`]. A mesh's
+/// interior edge belongs to the triangles on both its sides, so evaluating each element on
+/// its own computes every angle twice; the assembly and the objective compute them here
+/// once, then evaluate the elements from the table ([`Self::eval`], [`Self::energy`]): the
+/// same function, rounded differently on one of the two sides.
+pub struct SharedHinges {
+    /// Per hinge: its vertices [e₀, e₁, w₀, w₁] in the order the first element listed them.
+    hinges: Vec<[u32; 4]>,
+    /// Per element, per edge k: its hinge (`index` u32::MAX on a free edge).
+    refs: Vec<[HingeRef; 3]>,
+    /// Per hinge: θ and ∂θ/∂x at the last update.
+    theta: Vec<f64>,
+    grad: Vec<[f64; 12]>,
+}
+
+impl SharedHinges {
+    /// The table of `elements`' hinges.
+    pub fn new(elements: &[MidedgeBend]) -> Self {
+        let mut hinges: Vec<[u32; 4]> = Vec::new();
+        let mut by_key: std::collections::HashMap<[u32; 4], u32> = Default::default();
+        let none = HingeRef {
+            index: u32::MAX,
+            orient: 0,
+        };
+        let refs = elements
+            .iter()
+            .map(|el| {
+                let mut r = [none; 3];
+                for (k, rk) in r.iter_mut().enumerate() {
+                    let Some(h) = el.hinge(k) else { continue };
+                    let v = h.map(|i| el.v[i]);
+                    let key = [
+                        v[0].min(v[1]),
+                        v[0].max(v[1]),
+                        v[2].min(v[3]),
+                        v[2].max(v[3]),
+                    ];
+                    let index = *by_key.entry(key).or_insert_with(|| {
+                        hinges.push(v);
+                        hinges.len() as u32 - 1
+                    });
+                    let t = hinges[index as usize];
+                    let orient = ORIENT
+                        .iter()
+                        .position(|(p, _)| (0..4).all(|j| v[j] == t[p[j]]))
+                        .expect("a hinge with the same edge and wings is one of four orders");
+                    *rk = HingeRef {
+                        index,
+                        orient: orient as u8,
+                    };
+                }
+                r
+            })
+            .collect();
+        let n = hinges.len();
+        SharedHinges {
+            hinges,
+            refs,
+            theta: vec![0.0; n],
+            grad: vec![[0.0; 12]; n],
+        }
+    }
+
+    /// Number of distinct hinges.
+    pub fn len(&self) -> usize {
+        self.hinges.len()
+    }
+
+    /// Whether there is none.
+    pub fn is_empty(&self) -> bool {
+        self.hinges.is_empty()
+    }
+
+    /// Every hinge's angle at `x`, and its gradient where `with_grad`; over the thread pool
+    /// where `parallel` (each hinge writes its own entries: the same bits either way).
+    pub fn update(&mut self, x: &[Vector3<f64>], with_grad: bool, parallel: bool) {
+        use rayon::prelude::*;
+        let gather = |h: &[u32; 4]| {
+            let mut s = [0.0; 12];
+            for (a, &i) in h.iter().enumerate() {
+                let p = x[i as usize];
+                s[3 * a..3 * a + 3].copy_from_slice(&[p.x, p.y, p.z]);
+            }
+            s
+        };
+        let hinges = &self.hinges;
+        if with_grad {
+            let one = |(i, (t, g)): (usize, (&mut f64, &mut [f64; 12]))| {
+                (*t, *g) = dihedral_angle_gradient(&gather(&hinges[i]));
+            };
+            if parallel {
+                (self.theta.par_iter_mut().zip(self.grad.par_iter_mut()))
+                    .enumerate()
+                    .for_each(one);
+            } else {
+                self.theta
+                    .iter_mut()
+                    .zip(self.grad.iter_mut())
+                    .enumerate()
+                    .for_each(one);
+            }
+        } else {
+            let one = |(i, t): (usize, &mut f64)| *t = dihedral_angle(&gather(&hinges[i]));
+            if parallel {
+                self.theta.par_iter_mut().enumerate().for_each(one);
+            } else {
+                self.theta.iter_mut().enumerate().for_each(one);
+            }
+        }
+    }
+
+    /// φₖ = θₖ − θ̄ₖ of element `i` (`el`) from the table's angles.
+    fn phi(&self, i: usize, el: &MidedgeBend) -> [f64; 3] {
+        let mut phi = [0.0; 3];
+        for (k, r) in self.refs[i].iter().enumerate() {
+            if r.index != u32::MAX {
+                let d = ORIENT[r.orient as usize].1 * self.theta[r.index as usize] - el.rest[k];
+                phi[k] = d - wrap_offset(d);
+            }
+        }
+        phi
+    }
+
+    /// [`Element::eval`] of element `i` (`el`) with the projected (Gauss–Newton) Hessian,
+    /// from the angles and gradients of the last [`Self::update`] with gradients.
+    pub fn eval(&self, i: usize, el: &MidedgeBend, out: &mut Local) {
+        let phi = self.phi(i, el);
+        let mut g = [[0.0; 18]; 3];
+        for (k, r) in self.refs[i].iter().enumerate() {
+            if r.index == u32::MAX {
+                continue;
+            }
+            let (perm, sign) = ORIENT[r.orient as usize];
+            let gt = &self.grad[r.index as usize];
+            let h = el.hinge(k).expect("a shared hinge is an interior edge");
+            for (j, &a) in h.iter().enumerate() {
+                for c in 0..3 {
+                    g[k][3 * a + c] = sign * gt[3 * perm[j] + c];
+                }
+            }
+        }
+        el.gauss_newton(&phi, &g, out);
+        if let Some(dr) = el.dropoff {
+            dr.apply(out);
+        }
+    }
+
+    /// [`Element::energy`] of element `i` (`el`) from the angles of the last update.
+    pub fn energy(&self, i: usize, el: &MidedgeBend) -> f64 {
+        let e = el.quad(&self.phi(i, el)).1;
+        el.dropoff.map_or(e, |dr| dr.energy(e))
     }
 }
 
@@ -354,5 +540,94 @@ mod tests {
         );
         assert!(e.energy(&r).abs() < 1e-30);
         assert!(e.energy(&x) > 1e-3);
+    }
+
+    /// The hinge table gives every element the energy, gradient and Gauss–Newton Hessian its
+    /// own evaluation gives (to rounding: one side's angle is computed in the other side's
+    /// vertex order), serially and over the pool, on a bent, jittered grid with dropoff and
+    /// with four triangles listed in the opposite orientation (so some hinges are seen with
+    /// their angle's sign flipped).
+    #[test]
+    fn shared_hinges_evaluate_as_the_elements_do() {
+        let n = 7;
+        let mut rest = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                let jitter = 0.02 * (((i * 7 + j * 3) % 5) as f64 - 2.0);
+                rest.push(Vector3::new(0.1 * i as f64 + jitter, 0.1 * j as f64, 0.0));
+            }
+        }
+        let mut tris = Vec::new();
+        for j in 0..n - 1 {
+            for i in 0..n - 1 {
+                let v = (j * n + i) as u32;
+                let n = n as u32;
+                tris.push([v, v + 1, v + n]);
+                tris.push([v + 1, v + n + 1, v + n]);
+            }
+        }
+        tris[0].swap(1, 2);
+        tris[9].swap(1, 2);
+        tris[20].swap(0, 2);
+        tris[41].swap(0, 1);
+        let mut els = crate::energy::shell_bending(&rest, &tris, 0.7, 0.3)
+            .unwrap()
+            .triangles;
+        els[5].set_dropoff(0.5, 2.0);
+        let x: Vec<_> = rest
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let z = 0.3 * (3.0 * p.x).sin() * (2.0 * p.y).cos() + 0.01 * ((i * 7) % 5) as f64;
+                Vector3::new(p.x, p.y + 0.05 * p.x * p.x, z)
+            })
+            .collect();
+        let mut shared = SharedHinges::new(&els);
+        let mut seen = [0usize; 4];
+        for r in shared.refs.iter().flatten().filter(|r| r.index != u32::MAX) {
+            seen[r.orient as usize] += 1;
+        }
+        // The second side lists the wings swapped (each side's own vertex is the other's
+        // wing): the edge reversed too where the two triangles are oriented alike.
+        assert!(seen[..3].iter().all(|&k| k > 0), "orders seen: {seen:?}");
+        // Each interior edge once: a grid of 7 × 7 vertices has 42 + 42 + 36 edges, 24 of
+        // them on its boundary.
+        assert_eq!(shared.len(), 42 + 42 + 36 - 24);
+        let (mut own, mut from) = (Box::<Local>::default(), Box::<Local>::default());
+        for parallel in [false, true] {
+            shared.update(&x, true, parallel);
+            for (i, el) in els.iter().enumerate() {
+                el.eval(&x, true, &mut own);
+                shared.eval(i, el, &mut from);
+                let dofs = own.dofs;
+                assert_eq!(from.dofs, dofs);
+                let close = |a: f64, b: f64, scale: f64| (a - b).abs() <= 1e-12 * scale.max(1e-30);
+                assert!(
+                    close(own.energy, from.energy, own.energy),
+                    "element {i} energy"
+                );
+                let gs = own.grad[..dofs].iter().fold(0.0f64, |m, g| m.max(g.abs()));
+                let hs = (0..dofs)
+                    .flat_map(|c| (0..dofs).map(move |r| (c, r)))
+                    .fold(0.0f64, |m, (c, r)| m.max(own.hess[c][r].abs()));
+                for a in 0..dofs {
+                    assert!(close(own.grad[a], from.grad[a], gs), "element {i} grad {a}");
+                    for b in 0..dofs {
+                        assert!(
+                            close(own.hess[a][b], from.hess[a][b], hs),
+                            "element {i} hessian {a} {b}"
+                        );
+                    }
+                }
+            }
+            shared.update(&x, false, parallel);
+            for (i, el) in els.iter().enumerate() {
+                let (a, b) = (el.energy(&x), shared.energy(i, el));
+                assert!(
+                    (a - b).abs() <= 1e-12 * a.abs().max(1e-30),
+                    "element {i}: {a} vs {b}"
+                );
+            }
+        }
     }
 }

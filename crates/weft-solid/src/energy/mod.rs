@@ -14,7 +14,7 @@ mod spring;
 pub use dropoff::Dropoff;
 pub use hinge::{Hinge, dihedral_angle, dihedral_angle_gradient, dihedral_gradient};
 pub use membrane::{Membrane, MembraneMaterial};
-pub use midedge::MidedgeBend;
+pub use midedge::{MidedgeBend, SharedHinges};
 pub use rod::{RodBend, RodClamp, RodStretch};
 pub use shell::{
     ClampedEdge, MAX_STENCIL, ShellBend, ShellBending, ShellError, shell_bending,
