@@ -186,12 +186,7 @@ impl MidedgeBend {
     }
 
     fn gather12(&self, x: &[Vector3<f64>], h: [usize; 4]) -> [f64; 12] {
-        let mut s = [0.0; 12];
-        for (a, &i) in h.iter().enumerate() {
-            let p = x[self.v[i] as usize];
-            s[3 * a..3 * a + 3].copy_from_slice(&[p.x, p.y, p.z]);
-        }
-        s
+        gather4(x, h.map(|i| self.v[i]))
     }
 
     /// φₖ = θₖ − θ̄ₖ wrapped into (−π, π] (0 for free edges).
@@ -302,6 +297,16 @@ impl MidedgeBend {
     }
 }
 
+/// The positions of four vertices, stacked.
+fn gather4(x: &[Vector3<f64>], v: [u32; 4]) -> [f64; 12] {
+    let mut s = [0.0; 12];
+    for (a, &i) in v.iter().enumerate() {
+        let p = x[i as usize];
+        s[3 * a..3 * a + 3].copy_from_slice(&[p.x, p.y, p.z]);
+    }
+    s
+}
+
 /// Where a triangle's hinge finds its angle in [`SharedHinges`]: the table's hinge
 /// (`index`) seen in the element's vertex order (`orient`, see [`ORIENT`]).
 #[derive(Clone, Copy, Debug)]
@@ -401,14 +406,7 @@ impl SharedHinges {
     /// where `parallel` (each hinge writes its own entries: the same bits either way).
     pub fn update(&mut self, x: &[Vector3<f64>], with_grad: bool, parallel: bool) {
         use rayon::prelude::*;
-        let gather = |h: &[u32; 4]| {
-            let mut s = [0.0; 12];
-            for (a, &i) in h.iter().enumerate() {
-                let p = x[i as usize];
-                s[3 * a..3 * a + 3].copy_from_slice(&[p.x, p.y, p.z]);
-            }
-            s
-        };
+        let gather = |h: &[u32; 4]| gather4(x, *h);
         let hinges = &self.hinges;
         if with_grad {
             let one = |(i, (t, g)): (usize, (&mut f64, &mut [f64; 12]))| {
