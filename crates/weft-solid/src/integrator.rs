@@ -469,11 +469,7 @@ impl Integrator {
             per_element: RefCell::new(vec![0.0; slot_offset.len()]),
             hinges: (!sys.elements.midedges.is_empty())
                 .then(|| RefCell::new(SharedHinges::new(&sys.elements.midedges))),
-            midedges: {
-                let e = &sys.elements;
-                let start = e.membranes.len() + e.hinges.len() + e.shells.len();
-                start..start + e.midedges.len()
-            },
+            midedges: sys.elements.midedge_range(),
             whole_only,
             joined_max: contacts::JOINED_MAX,
             slot_offset,
@@ -526,9 +522,7 @@ impl Integrator {
         let mut per = self.per_element.borrow_mut();
         let parallel = per.len() >= PARALLEL_MIN && rayon::current_num_threads() > 1;
         if let Some(h) = &self.hinges {
-            let mut h = h.borrow_mut();
-            let par = parallel && h.len() >= PARALLEL_MIN;
-            h.update(x, false, par);
+            refresh_hinges(&mut h.borrow_mut(), x, false);
         }
         let hinges = self.hinges.as_ref().map(|h| h.borrow());
         let hinges = hinges.as_deref();
@@ -611,9 +605,7 @@ impl Integrator {
         }
         let parallel = rayon::current_num_threads() > 1;
         if let Some(h) = self.hinges.as_mut() {
-            let h = h.get_mut();
-            let par = parallel && h.len() >= PARALLEL_MIN;
-            h.update(x, true, par);
+            refresh_hinges(h.get_mut(), x, true);
         }
         let values = Shared(self.values.as_mut_ptr());
         let grad = Shared(self.grad.as_mut_ptr());
@@ -1492,6 +1484,13 @@ impl Integrator {
             ..Default::default()
         })
     }
+}
+
+/// The hinge table's angles (and gradients where `with_grad`) at `x`, over the pool from
+/// [`PARALLEL_MIN`] hinges.
+fn refresh_hinges(h: &mut SharedHinges, x: &[Vector3<f64>], with_grad: bool) {
+    let parallel = rayon::current_num_threads() > 1 && h.len() >= PARALLEL_MIN;
+    h.update(x, with_grad, parallel);
 }
 
 /// Adds one element's gradient and Hessian, evaluated into `local` on the stencil `v`, into

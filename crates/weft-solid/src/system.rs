@@ -69,6 +69,11 @@ impl Elements {
         );
         panic!("element index out of range")
     }
+    /// The indices [`Self::get`] gives the midedge elements.
+    pub fn midedge_range(&self) -> std::ops::Range<usize> {
+        let start = self.membranes.len() + self.hinges.len() + self.shells.len();
+        start..start + self.midedges.len()
+    }
     /// Number of elements.
     pub fn len(&self) -> usize {
         self.membranes.len()
