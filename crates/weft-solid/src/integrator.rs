@@ -156,9 +156,16 @@ pub struct Integrator {
     col_ptr: Vec<usize>,
     row_idx: Vec<usize>,
     values: Vec<f64>,
-    /// Per element, per (a, b) stencil pair: the block's slot in column block v[b].
+    /// Per element, per (a, b) stencil pair: the block's slot in column block v[b], for
+    /// blocks on or below the diagonal only (`NONE` above it: see `upper_src`).
     slots: Vec<u32>,
     diag_slot: Vec<u32>,
+    /// Per block above the diagonal (column by column, its slots below `diag_slot`): the
+    /// slot of its transpose in the column of its row. Elements scatter the lower triangle
+    /// only (half the scatter's loads and stores) and [`Self::mirror_upper`] copies it up.
+    upper_src: Vec<u32>,
+    /// Per free node: where its column's entries start in `upper_src`.
+    upper_start: Vec<usize>,
     /// The system matrix's factorization.
     factor: Factor,
     /// Where the pattern holds the two-ring of wide elements (shell bending) and a factor of
@@ -396,7 +403,8 @@ impl Integrator {
                         free_of.get(a as usize).copied().unwrap_or(NONE),
                         free_of.get(b as usize).copied().unwrap_or(NONE),
                     );
-                    slots.push(if fa != NONE && fb != NONE && !grouped {
+                    // Row node fa, column node fb: the lower triangle only.
+                    slots.push(if fa != NONE && fb != NONE && fa >= fb && !grouped {
                         nbrs[fb as usize]
                             .binary_search(&fa)
                             .expect("pattern holds every pair") as u32
@@ -406,8 +414,25 @@ impl Integrator {
                 }
             }
         });
-        let diag_slot = (0..n_free)
+        let diag_slot: Vec<u32> = (0..n_free)
             .map(|j| nbrs[j].binary_search(&(j as u32)).expect("diagonal") as u32)
+            .collect();
+        let upper_start = std::iter::once(0)
+            .chain(diag_slot.iter().scan(0, |acc, &d| {
+                *acc += d as usize;
+                Some(*acc)
+            }))
+            .take(n_free)
+            .collect();
+        let upper_src = (0..n_free)
+            .flat_map(|j| {
+                let nbrs = &nbrs;
+                nbrs[j][..diag_slot[j] as usize].iter().map(move |&i| {
+                    nbrs[i as usize]
+                        .binary_search(&(j as u32))
+                        .expect("symmetric pattern") as u32
+                })
+            })
             .collect();
         let at = free_layout(sys, &free_of, n_vertices);
         // Not split with rigid groups (their nodes couple every member).
@@ -439,6 +464,8 @@ impl Integrator {
             row_idx,
             slots,
             diag_slot,
+            upper_src,
+            upper_start,
             factor,
             one_ring: None,
             one_ring_tried: false,
@@ -649,6 +676,7 @@ impl Integrator {
         self.parts.run(&work, parallel);
         drop(per);
         drop(hinges_ref);
+        self.mirror_upper();
         if !self.groups.is_empty() {
             // Elements with a member: through the groups' Jacobians, in element order.
             // The scratch moves out by its box (a `Local` is 73 kB: moving it by value per
@@ -673,6 +701,44 @@ impl Integrator {
         self.force_scale = per.iter().fold(self.force_scale, |a, b| a + b);
         drop(per);
         self.filter_sliders(sys, x, x0, mode);
+    }
+
+    /// Copies every block below the diagonal onto its transpose above it, which the
+    /// elements did not write. Whatever was added above the diagonal before (the rigid
+    /// groups' members' terms, added to both triangles alike) is overwritten by its mirror
+    /// image, so the matrix is exactly symmetric.
+    fn mirror_upper(&mut self) {
+        let values = Shared(self.values.as_mut_ptr());
+        let (col_ptr, row_idx, diag_slot) = (&self.col_ptr, &self.row_idx, &self.diag_slot);
+        let (upper_src, upper_start) = (&self.upper_src, &self.upper_start);
+        // Columns `range`'s blocks above the diagonal, from their transposes below it.
+        // SAFETY: a column's upper blocks are written by its own chunk only, and the blocks
+        // read (below the diagonal) are never written here; the pointers cover `values`.
+        let mirror = |range: std::ops::Range<usize>| unsafe {
+            for j in range {
+                let base = col_ptr[3 * j];
+                for s in 0..diag_slot[j] as usize {
+                    let i = row_idx[base + 3 * s] / 3;
+                    let src = col_ptr[3 * i] + 9 * upper_src[upper_start[j] + s] as usize;
+                    let dst = base + 9 * s;
+                    for cc in 0..3 {
+                        for rr in 0..3 {
+                            *values.at(dst + 3 * cc + rr) = *values.at(src + 3 * rr + cc);
+                        }
+                    }
+                }
+            }
+        };
+        // Copies only: the same bits on any number of threads. (Small chunks in tests, so
+        // their small systems take the parallel path.)
+        const CHUNK: usize = if cfg!(test) { 8 } else { 2048 };
+        if self.n_free >= 2 * CHUNK && rayon::current_num_threads() > 1 {
+            (0..self.n_free.div_ceil(CHUNK))
+                .into_par_iter()
+                .for_each(|c| mirror(c * CHUNK..((c + 1) * CHUNK).min(self.n_free)));
+        } else {
+            mirror(0..self.n_free);
+        }
     }
 
     /// The rigid groups' members' own terms (inertia, damping, drag, or the static loads),
@@ -1533,6 +1599,95 @@ unsafe fn scatter(
                     for rr in 0..3 {
                         *values.at(base + 3 * cc + rr) += local.hess[3 * b + cc][3 * a + rr];
                     }
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::energy::{MembraneMaterial, shell_bending};
+
+    /// The assembled matrix (elements scattered below the diagonal, mirrored above it) is
+    /// exactly symmetric and equals the sum of every element's own Hessian and the inertia,
+    /// entry by entry (to rounding: the sums run in another order), on a bent, held sheet
+    /// with shell bending, for both kinds of element Hessians.
+    #[test]
+    fn the_mirrored_matrix_is_the_sum_of_the_element_hessians() {
+        let k = 6;
+        let mat = MembraneMaterial::orthotropic(2e6, 0.3, 5e-4, 1.0, 1.0, 1.0);
+        let (mut sys, state) =
+            crate::verify::membrane_sheet(k, k, 1.0, 1.0, mat, Vector3::x()).unwrap();
+        let tris: Vec<[u32; 3]> = sys.elements.membranes.iter().map(|m| m.v).collect();
+        let bending = shell_bending(&state.x, &tris, 1e-3, 0.3).unwrap();
+        sys.elements.shells = bending.vertices;
+        sys.elements.midedges = bending.triangles;
+        sys.pinned[0] = true;
+        sys.pinned[k - 1] = true;
+        // Bent and squeezed, so the exact Hessians differ from the projected ones.
+        let x: Vec<Vector3<f64>> = state
+            .x
+            .iter()
+            .map(|p| Vector3::new(0.9 * p.x, p.y, 0.2 * (3.0 * p.x).sin() * p.y))
+            .collect();
+        let h = 1.0 / 48.0;
+        let mut it = Integrator::new(&sys).unwrap();
+        let dofs = 3 * it.n_free;
+        for hessians in [Hessians::Projected, Hessians::First] {
+            it.x_hat = x.clone();
+            it.assemble_with(&sys, &x, &x, Mode::Dynamic { h }, hessians);
+            let mut dense = vec![0.0; dofs * dofs];
+            for (i, &f) in it.free_of.iter().enumerate() {
+                if f != NONE {
+                    for c in 0..3 {
+                        let d = 3 * f as usize + c;
+                        dense[d * dofs + d] += sys.mass[i] / (h * h);
+                    }
+                }
+            }
+            let mut local = Local::default();
+            sys.elements.for_each(|e| {
+                match hessians {
+                    Hessians::Projected => e.eval(&x, true, &mut local),
+                    Hessians::First => e.eval_first(&x, &mut local),
+                }
+                let v = e.vertices();
+                for (a, &va) in v.iter().enumerate() {
+                    for (b, &vb) in v.iter().enumerate() {
+                        let (fa, fb) = (it.free_of[va as usize], it.free_of[vb as usize]);
+                        if fa == NONE || fb == NONE {
+                            continue;
+                        }
+                        for rr in 0..3 {
+                            for cc in 0..3 {
+                                let (r, c) = (3 * fa as usize + rr, 3 * fb as usize + cc);
+                                dense[c * dofs + r] += local.hess[3 * b + cc][3 * a + rr];
+                            }
+                        }
+                    }
+                }
+            });
+            let scale = dense.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            for c in 0..dofs {
+                for p in it.col_ptr[c]..it.col_ptr[c + 1] {
+                    let r = it.row_idx[p];
+                    let v = it.values[value_index(&it.col_ptr, p, c)];
+                    let t = it.values[value_index(
+                        &it.col_ptr,
+                        it.col_ptr[r]
+                            + (it.row_idx[it.col_ptr[r]..it.col_ptr[r + 1]])
+                                .binary_search(&c)
+                                .unwrap(),
+                        r,
+                    )];
+                    assert_eq!(v.to_bits(), t.to_bits(), "({r}, {c}) not symmetric");
+                    assert!(
+                        (v - dense[c * dofs + r]).abs() <= 1e-12 * scale,
+                        "({r}, {c}): {v} against {}",
+                        dense[c * dofs + r]
+                    );
                 }
             }
         }
