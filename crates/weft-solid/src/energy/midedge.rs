@@ -279,18 +279,20 @@ impl MidedgeBend {
         for i in 0..dofs {
             out.grad[i] = (0..3).map(|k| f[k] * g[k][i]).sum();
         }
-        // Σₖₗ Bₖₗ ∇θₖ∇θₗᵀ = V Vᵀ with V = G L (G's columns the ∇θₖ): the lower half, mirrored.
-        let mut v = [[0.0; 3]; 18];
-        for (i, vi) in v.iter_mut().enumerate().take(dofs) {
-            for (m, vim) in vi.iter_mut().enumerate() {
+        // Σₖₗ Bₖₗ ∇θₖ∇θₗᵀ = V Vᵀ with V = G L (G's columns the ∇θₖ), V stored by columns
+        // (vt[m] is V's m-th column) so that each column of the Hessian is three contiguous
+        // multiply-adds (vectorized), and exactly symmetric (products commute).
+        let mut vt = [[0.0; 18]; 3];
+        for (m, vm) in vt.iter_mut().enumerate() {
+            for (i, vim) in vm.iter_mut().enumerate().take(dofs) {
                 *vim = (0..3).map(|k| g[k][i] * self.l[k][m]).sum();
             }
         }
+        let [v0, v1, v2] = &vt;
         for c in 0..dofs {
-            for r in c..dofs {
-                let h = v[c][0] * v[r][0] + v[c][1] * v[r][1] + v[c][2] * v[r][2];
-                out.hess[c][r] = h;
-                out.hess[r][c] = h;
+            let (a0, a1, a2) = (v0[c], v1[c], v2[c]);
+            for (r, h) in out.hess[c][..dofs].iter_mut().enumerate() {
+                *h = a0 * v0[r] + a1 * v1[r] + a2 * v2[r];
             }
         }
         f
