@@ -201,6 +201,30 @@ pub(super) struct Factor {
     mem: MemBuffer,
     /// Where set, factorizations and solves go through the two-halves split (`split.rs`).
     pub(super) split: Option<split::Split>,
+    /// Where set, the factor is nearly dense and small: factored as a dense matrix.
+    dense: Option<Dense>,
+}
+
+/// Systems of at most [`DENSE_MAX`] unknowns whose dense factorization (n³/3 flops) costs at
+/// most [`DENSE_FLOPS`] times the sparse one's flops are factored dense: on a small sheet
+/// with shell bending (every vertex coupled to its two-ring, so a 5 × 5 grid's matrix is
+/// nearly full) the supernodal factorization's updates between its many small supernodes
+/// cost more than the fill they skip. Measured per factorization, sparse → dense: the 4²
+/// square of `bench/peers` (69 unknowns, dense 1.9× the sparse flops) 17 → 10 µs; the
+/// 10-segment ribbon (54, 3.4×) 5.2 → 5.7 µs, the 10-segment cantilever (90, 5×) 18 → 20
+/// µs, the 6² square (141, 3.7×) 20 → 54 µs: those stay sparse.
+const DENSE_MAX: usize = 192;
+const DENSE_FLOPS: f64 = 2.5;
+
+/// A small, nearly dense factor: the permuted lower triangle scattered into a dense matrix
+/// (column-major), factored in place.
+struct Dense {
+    /// Per entry of the analysis' lower pattern: its index in `a`.
+    at: Vec<usize>,
+    /// The lower triangle's other entries (the factor's fill), zeroed before each
+    /// factorization (the upper triangle is never read).
+    fill: Vec<usize>,
+    a: Vec<f64>,
 }
 
 impl Factor {
@@ -249,7 +273,14 @@ impl Factor {
         let symbolic = &analysis.symbolic;
         let scratch = symbolic
             .factorize_numeric_llt_scratch::<f64>(par, Default::default())
-            .or(symbolic.solve_in_place_scratch::<f64>(1, par));
+            .or(symbolic.solve_in_place_scratch::<f64>(1, par))
+            .or(
+                faer::linalg::cholesky::llt::factor::cholesky_in_place_scratch::<f64>(
+                    dofs,
+                    par,
+                    Default::default(),
+                ),
+            );
         if let Some(limit) = max_bytes {
             let need = (symbolic.len_val() as u64)
                 .saturating_add(3 * analysis.lower_row.len() as u64 + 3 * dofs as u64)
@@ -265,8 +296,35 @@ impl Factor {
                 });
             }
         }
+        let dense = (split.is_none()
+            && dofs <= DENSE_MAX
+            && (dofs as f64).powi(3) / 3.0 <= DENSE_FLOPS * analysis.flops)
+            .then(|| {
+                let at: Vec<usize> = (0..dofs)
+                    .flat_map(|c| {
+                        let rows =
+                            &analysis.lower_row[analysis.lower_ptr[c]..analysis.lower_ptr[c + 1]];
+                        rows.iter().map(move |&r| r + c * dofs)
+                    })
+                    .collect();
+                let mut lower = vec![false; dofs * dofs];
+                at.iter().for_each(|&k| lower[k] = true);
+                let fill = (0..dofs)
+                    .flat_map(|c| (c..dofs).map(move |r| r + c * dofs))
+                    .filter(|&k| !lower[k])
+                    .collect();
+                Dense {
+                    at,
+                    fill,
+                    a: vec![0.0; dofs * dofs],
+                }
+            });
         // A split system factors its halves (`split.rs`): no whole factor to hold.
-        let whole = if split.is_some() { 0 } else { 1 };
+        let whole = if split.is_some() || dense.is_some() {
+            0
+        } else {
+            1
+        };
         let narrow_tmp = match symbolic.raw() {
             SymbolicCholeskyRaw::Supernodal(sn) => solve::narrow(sn).map(|m| vec![0.0; m]),
             SymbolicCholeskyRaw::Simplicial(_) => None,
@@ -276,13 +334,14 @@ impl Factor {
             lower_values: vec![0.0; whole * analysis.lower_row.len()],
             permuted: vec![0.0; dofs],
             narrow_tmp,
-            mem: MemBuffer::new(if whole == 1 {
+            mem: MemBuffer::new(if split.is_none() {
                 scratch
             } else {
                 faer::dyn_stack::StackReq::EMPTY
             }),
             analysis,
             split,
+            dense,
         })
     }
 
@@ -303,6 +362,22 @@ impl Factor {
                 Err(faer::linalg::solvers::LltError::NonPositivePivot { index: 0 })
             };
         }
+        if let Some(d) = self.dense.as_mut() {
+            let n = self.analysis.fwd.len();
+            d.fill.iter().for_each(|&k| d.a[k] = 0.0);
+            for (&at, &k) in d.at.iter().zip(&self.analysis.lower_src) {
+                d.a[at] = values[k];
+            }
+            let a = MatMut::from_column_major_slice_mut(&mut d.a, n, n);
+            return faer::linalg::cholesky::llt::factor::cholesky_in_place(
+                a,
+                Default::default(),
+                Par::Seq,
+                MemStack::new(&mut self.mem),
+                Default::default(),
+            )
+            .map(|_| ());
+        }
         self.analysis.factor(
             values,
             &mut self.lower_values,
@@ -321,22 +396,137 @@ impl Factor {
         for (p, &i) in self.permuted.iter_mut().zip(&self.analysis.fwd) {
             *p = b[i];
         }
-        match (self.analysis.symbolic.raw(), self.narrow_tmp.as_mut()) {
-            // Hair-like factors (every supernode narrow): see `solve.rs` for why not faer's.
-            (SymbolicCholeskyRaw::Supernodal(sn), Some(tmp)) => {
-                solve::supernodal_solve(sn, &self.l_values, &mut self.permuted, tmp);
-            }
-            _ => {
-                let llt = faer::sparse::linalg::cholesky::LltRef::new(
-                    &self.analysis.symbolic,
-                    &self.l_values,
-                );
-                let rhs = MatMut::from_column_major_slice_mut(&mut self.permuted, dofs, 1);
-                llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut self.mem));
+        if let Some(d) = self.dense.as_ref() {
+            let l = faer::MatRef::from_column_major_slice(&d.a, dofs, dofs);
+            let rhs = MatMut::from_column_major_slice_mut(&mut self.permuted, dofs, 1);
+            faer::linalg::cholesky::llt::solve::solve_in_place_with_conj(
+                l,
+                Conj::No,
+                rhs,
+                Par::Seq,
+                MemStack::new(&mut self.mem),
+            );
+        } else {
+            match (self.analysis.symbolic.raw(), self.narrow_tmp.as_mut()) {
+                // Hair-like factors (every supernode narrow): see `solve.rs` for why not faer's.
+                (SymbolicCholeskyRaw::Supernodal(sn), Some(tmp)) => {
+                    solve::supernodal_solve(sn, &self.l_values, &mut self.permuted, tmp);
+                }
+                _ => {
+                    let llt = faer::sparse::linalg::cholesky::LltRef::new(
+                        &self.analysis.symbolic,
+                        &self.l_values,
+                    );
+                    let rhs = MatMut::from_column_major_slice_mut(&mut self.permuted, dofs, 1);
+                    llt.solve_in_place_with_conj(
+                        Conj::No,
+                        rhs,
+                        Par::Seq,
+                        MemStack::new(&mut self.mem),
+                    );
+                }
             }
         }
         for (&p, &i) in self.permuted.iter().zip(&self.analysis.fwd) {
             b[i] = p;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    impl Factor {
+        /// The same factor without its dense form (the supernodal one), for comparison.
+        fn sparse_only(mut self) -> Self {
+            self.dense = None;
+            self.l_values = vec![0.0; self.analysis.symbolic.len_val()];
+            self.lower_values = vec![0.0; self.analysis.lower_row.len()];
+            self
+        }
+    }
+
+    /// A k × k grid's vertex graph where each vertex neighbours those within two rows and
+    /// columns (shell bending's two-ring), its DOF pattern (3×3 blocks), and a symmetric
+    /// matrix on it: off-diagonal entries from a hash of their (row, column) pair, the
+    /// diagonal `diag`.
+    fn two_ring(k: usize, diag: f64) -> (Vec<Vec<u32>>, Vec<usize>, Vec<usize>, Vec<f64>) {
+        let nbrs: Vec<Vec<u32>> = (0..k * k)
+            .map(|v| {
+                let (i, j) = ((v % k) as i64, (v / k) as i64);
+                (0..k * k)
+                    .filter(|&u| {
+                        let (a, b) = ((u % k) as i64, (u / k) as i64);
+                        (a - i).abs() <= 2 && (b - j).abs() <= 2
+                    })
+                    .map(|u| u as u32)
+                    .collect()
+            })
+            .collect();
+        let mut col_ptr = vec![0];
+        let mut row_idx = Vec::new();
+        for l in &nbrs {
+            for _ in 0..3 {
+                row_idx.extend(
+                    l.iter()
+                        .flat_map(|&i| (0..3).map(move |r| 3 * i as usize + r)),
+                );
+                col_ptr.push(row_idx.len());
+            }
+        }
+        let mut values = vec![0.0; row_idx.len()];
+        for c in 0..3 * k * k {
+            for p in col_ptr[c]..col_ptr[c + 1] {
+                let r = row_idx[p];
+                let (lo, hi) = (r.min(c) as u64, r.max(c) as u64);
+                let h = (lo * 7919 + hi * 104_729).wrapping_mul(2_654_435_761) % 1000;
+                values[value_index(&col_ptr, p, c)] = if r == c {
+                    diag
+                } else {
+                    h as f64 / 1000.0 - 0.5
+                };
+            }
+        }
+        (nbrs, col_ptr, row_idx, values)
+    }
+
+    /// A 4 × 4 two-ring grid (48 unknowns, nearly full) is factored dense; its solve agrees
+    /// with the supernodal factor's to rounding, and both refuse an indefinite matrix.
+    #[test]
+    fn a_small_nearly_full_system_is_factored_dense_with_the_sparse_answer() {
+        let (nbrs, col_ptr, row_idx, values) = two_ring(4, 60.0);
+        let mut dense = Factor::new(&nbrs, &col_ptr, &row_idx, &[], false, None).unwrap();
+        assert!(dense.dense.is_some());
+        let mut sparse = Factor::new(&nbrs, &col_ptr, &row_idx, &[], false, None)
+            .unwrap()
+            .sparse_only();
+        dense.factor(&values).unwrap();
+        sparse.factor(&values).unwrap();
+        let b: Vec<f64> = (0..48).map(|i| (i as f64 * 0.37).sin()).collect();
+        let (mut x, mut y) = (b.clone(), b.clone());
+        dense.solve_in_place(&mut x);
+        sparse.solve_in_place(&mut y);
+        for (p, q) in x.iter().zip(&y) {
+            // Both are backward stable on a well-conditioned (diagonally dominant) matrix.
+            assert!((p - q).abs() <= 1e-13 * q.abs().max(1e-2), "{p} {q}");
+        }
+        // A's residual: the dense solve answers the system itself.
+        let mut ax = vec![0.0; 48];
+        for c in 0..48 {
+            for p in col_ptr[c]..col_ptr[c + 1] {
+                ax[row_idx[p]] += values[value_index(&col_ptr, p, c)] * x[c];
+            }
+        }
+        for (r, bi) in ax.iter().zip(&b) {
+            assert!((r - bi).abs() < 1e-12, "{r} {bi}");
+        }
+        let (_, _, _, indefinite) = two_ring(4, -1.0);
+        assert!(dense.factor(&indefinite).is_err());
+        assert!(sparse.factor(&indefinite).is_err());
+        // A 6 × 6 grid's sparse factor costs well under the dense one: kept sparse.
+        let (nbrs, col_ptr, row_idx, _) = two_ring(6, 60.0);
+        let six = Factor::new(&nbrs, &col_ptr, &row_idx, &[], false, None).unwrap();
+        assert!(six.dense.is_none());
     }
 }
