@@ -22,9 +22,9 @@ user of each would build the clamp differently (Weft holds one column with clamp
 Blender, which has no clamp, pins two columns, the second at the strip's root). Each run's time is the simulation's wall time:
 Blender's frame changes after its start frame (where it builds its springs), without its
 start-up nor the reading of its vertices; Weft's graph evaluation of the frames after its
-start frame (where it compiles the system), from its --stats-json, without its output
-nodes' share (the OBJ files a scene reads its meshes from), the process's start and the
-graph file's parse. Each process's whole wall time is in the CSV
+start frame (where it compiles the system), from its --stats-json, the process's start and
+the graph file's parse left out. Weft reports what is measured from its graph's outputs (one
+vertex's position, the centre of mass) without writing files in the timed frames. Each process's whole wall time is in the CSV
 too. Sweeps: resolution for both; Weft's substeps, tolerance, method, (on the square)
 integrator and (on the ribbon) membrane stiffness; Blender's quality (steps a frame) and membrane stiffness. Blender's stiffnesses come from the material by the formulas of
 its source (see `blender_material`), not from fitting its answer to the reference.
@@ -81,24 +81,6 @@ def write_obj(verts, faces, path):
             f.write("v {!r} {!r} {!r}\n".format(*v))
         for t in faces:
             f.write("f " + " ".join(str(k + 1) for k in t) + "\n")
-
-
-def read_obj(path):
-    return [tuple(map(float, line.split()[1:4])) for line in open(path) if line.startswith("v ")]
-
-
-def lumped_weights(verts, faces):
-    """A third of each adjacent triangle's rest area per vertex: the mass a uniform sheet
-    lumps at it, so Σ w x / Σ w is the centre of mass to O(h²)."""
-    w = [0.0] * len(verts)
-    for a, b, c in faces:
-        u = [verts[b][k] - verts[a][k] for k in range(3)]
-        v = [verts[c][k] - verts[a][k] for k in range(3)]
-        n = (u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0])
-        area = 0.5 * math.sqrt(sum(x * x for x in n))
-        for k in (a, b, c):
-            w[k] += area / 3
-    return w
 
 
 # --- Blender's material from physical units ---------------------------------------------------
@@ -311,8 +293,9 @@ class Square:
                    "material": dict(blender_material(self.ET, self.D, self.SIDE / n), mass=mass),
                    "air_damping": 0.0, "spring_damping": 0.0, "bending_damping": 0.0, "pin_stiffness": 1000.0,
                    "gravity": BLENDER_GRAVITY}
-        weft["info"] = {"weights": lumped_weights(verts, faces)}
-        # Blender's vertices weigh the same: its centre of mass is their mean.
+        # Weft's centre of mass is its graph's output (the vertices weighted by their lumped
+        # rest areas, as its masses); Blender's vertices weigh the same: their mean.
+        weft["info"] = {}
         blender["info"] = {"weights": [1.0] * len(verts)}
         return weft, blender
 
@@ -378,9 +361,13 @@ class Runner:
                         "--set", f"shell.bend_scale={json.dumps(w['set']['shell.bend_scale'] / v)}"]
             else:
                 cmd += ["--set", f"solve.{k}={v}"]
-        # One vertex at the last frame is an output; more are read from the written meshes.
+        # One vertex at the last frame, or the centre of mass at every frame, is an output: no
+        # files written in the timed frames (writing each frame's mesh, though its own time
+        # is left out, slowed the 4² square's solver by half: the fsyncs' waits leave its
+        # caches cold).
         probe = w["info"].get("probe")
-        cmd += ["--output", "obj"] if probe is None else ["--set", f"probe.index={probe}", "--output", "probe"]
+        cmd += (["--output", "com"] if probe is None
+                else ["--set", f"probe.index={probe}", "--output", "probe"])
         cmd += ["--stats-json", str(out / "stats.json")]
         t0 = time.perf_counter()
         r = subprocess.run(cmd, capture_output=True, text=True)
@@ -389,18 +376,16 @@ class Runner:
             return None, wall, (r.stderr.strip().splitlines() or ["failed"])[-1], wall
         # Like Blender's frame changes after its start frame: the graph's evaluation of every
         # frame after the first (the first compiles the system, as Blender's start frame
-        # builds its springs, outside its timing), without the output nodes' share (the OBJ
-        # files a scene reads its meshes from, each flushed to disk: Blender's vertices are
-        # read outside its timing too), the process's start and the graph file's parse.
+        # builds its springs, outside its timing), without output nodes' share (none is
+        # asked for), the process's start and the graph file's parse.
         stats = json.load(open(out / "stats.json"))
         seconds = sum(f["seconds"] - f["output_seconds"] for f in stats["frames"][1:])
-        if probe is None:
-            positions = {f: read_obj(out / "obj" / f"sheet.{f:04}.obj") for f in sample}
-        else:
-            last = json.loads(r.stdout.strip().splitlines()[-1].split("\t")[1])
-            positions = {frames: {probe: last}}
+        rows = {int(line.split("\t")[0]): json.loads(line.split("\t")[1])
+                for line in r.stdout.strip().splitlines()[1:]}
         shutil.rmtree(out, ignore_errors=True)
-        return scene.measure(positions, w["info"]), seconds, "", wall
+        if probe is None:
+            return {f: rows[f] for f in sample}, seconds, "", wall
+        return scene.measure({frames: {probe: rows[frames]}}, w["info"]), seconds, "", wall
 
     def blender_run(self, scene, n, quality, stiffness):
         _, b = scene.setup(n)
