@@ -1608,7 +1608,6 @@ unsafe fn scatter(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::energy::{MembraneMaterial, shell_bending};
 
     /// The assembled matrix (elements scattered below the diagonal, mirrored above it) is
     /// exactly symmetric and equals the sum of every element's own Hessian and the inertia,
@@ -1616,16 +1615,7 @@ mod tests {
     /// with shell bending, for both kinds of element Hessians.
     #[test]
     fn the_mirrored_matrix_is_the_sum_of_the_element_hessians() {
-        let k = 6;
-        let mat = MembraneMaterial::orthotropic(2e6, 0.3, 5e-4, 1.0, 1.0, 1.0);
-        let (mut sys, state) =
-            crate::verify::membrane_sheet(k, k, 1.0, 1.0, mat, Vector3::x()).unwrap();
-        let tris: Vec<[u32; 3]> = sys.elements.membranes.iter().map(|m| m.v).collect();
-        let bending = shell_bending(&state.x, &tris, 1e-3, 0.3).unwrap();
-        sys.elements.shells = bending.vertices;
-        sys.elements.midedges = bending.triangles;
-        sys.pinned[0] = true;
-        sys.pinned[k - 1] = true;
+        let (sys, state) = order::tests::shell_sheet(6, 1e-3);
         // Bent and squeezed, so the exact Hessians differ from the projected ones.
         let x: Vec<Vector3<f64>> = state
             .x

@@ -68,14 +68,17 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
                     });
                 }
                 let w = match cx.params().str("weights")? {
-                    "area" => Some(area_weights(e)?),
+                    "area" => {
+                        let w = area_weights(e)?;
+                        let total: f64 = w.iter().sum();
+                        Some((w, total))
+                    }
                     _ => None,
                 };
                 let mean = |values: &[[f64; 3]]| {
                     let mut c = [0.0; 3];
                     match &w {
-                        Some(w) => {
-                            let total: f64 = w.iter().sum();
+                        Some((w, total)) => {
                             for (q, wq) in values.iter().zip(w) {
                                 for k in 0..3 {
                                     c[k] += wq * q[k] / total;

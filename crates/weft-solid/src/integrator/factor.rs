@@ -447,55 +447,14 @@ mod tests {
         }
     }
 
-    /// A k × k grid's vertex graph where each vertex neighbours those within two rows and
-    /// columns (shell bending's two-ring), its DOF pattern (3×3 blocks), and a symmetric
-    /// matrix on it: off-diagonal entries from a hash of their (row, column) pair, the
-    /// diagonal `diag`.
-    fn two_ring(k: usize, diag: f64) -> (Vec<Vec<u32>>, Vec<usize>, Vec<usize>, Vec<f64>) {
-        let nbrs: Vec<Vec<u32>> = (0..k * k)
-            .map(|v| {
-                let (i, j) = ((v % k) as i64, (v / k) as i64);
-                (0..k * k)
-                    .filter(|&u| {
-                        let (a, b) = ((u % k) as i64, (u / k) as i64);
-                        (a - i).abs() <= 2 && (b - j).abs() <= 2
-                    })
-                    .map(|u| u as u32)
-                    .collect()
-            })
-            .collect();
-        let mut col_ptr = vec![0];
-        let mut row_idx = Vec::new();
-        for l in &nbrs {
-            for _ in 0..3 {
-                row_idx.extend(
-                    l.iter()
-                        .flat_map(|&i| (0..3).map(move |r| 3 * i as usize + r)),
-                );
-                col_ptr.push(row_idx.len());
-            }
-        }
-        let mut values = vec![0.0; row_idx.len()];
-        for c in 0..3 * k * k {
-            for p in col_ptr[c]..col_ptr[c + 1] {
-                let r = row_idx[p];
-                let (lo, hi) = (r.min(c) as u64, r.max(c) as u64);
-                let h = (lo * 7919 + hi * 104_729).wrapping_mul(2_654_435_761) % 1000;
-                values[value_index(&col_ptr, p, c)] = if r == c {
-                    diag
-                } else {
-                    h as f64 / 1000.0 - 0.5
-                };
-            }
-        }
-        (nbrs, col_ptr, row_idx, values)
-    }
-
-    /// A 4 × 4 two-ring grid (48 unknowns, nearly full) is factored dense; its solve agrees
-    /// with the supernodal factor's to rounding, and both refuse an indefinite matrix.
+    /// A 4 × 4 two-ring grid (48 unknowns, nearly full; `split.rs`'s test grid and SPD
+    /// matrix) is factored dense; its solve agrees with the supernodal factor's to rounding,
+    /// and both refuse an indefinite matrix.
     #[test]
     fn a_small_nearly_full_system_is_factored_dense_with_the_sparse_answer() {
-        let (nbrs, col_ptr, row_idx, values) = two_ring(4, 60.0);
+        use super::super::split::tests::{grid, spd};
+        let (nbrs, _, col_ptr, row_idx) = grid(4);
+        let values = spd(&col_ptr, &row_idx);
         let mut dense = Factor::new(&nbrs, &col_ptr, &row_idx, &[], false, None).unwrap();
         assert!(dense.dense.is_some());
         let mut sparse = Factor::new(&nbrs, &col_ptr, &row_idx, &[], false, None)
@@ -521,11 +480,19 @@ mod tests {
         for (r, bi) in ax.iter().zip(&b) {
             assert!((r - bi).abs() < 1e-12, "{r} {bi}");
         }
-        let (_, _, _, indefinite) = two_ring(4, -1.0);
+        // The diagonal made negative: both refuse it.
+        let mut indefinite = values.clone();
+        for c in 0..48 {
+            for p in col_ptr[c]..col_ptr[c + 1] {
+                if row_idx[p] == c {
+                    indefinite[value_index(&col_ptr, p, c)] = -1.0;
+                }
+            }
+        }
         assert!(dense.factor(&indefinite).is_err());
         assert!(sparse.factor(&indefinite).is_err());
         // A 6 × 6 grid's sparse factor costs well under the dense one: kept sparse.
-        let (nbrs, col_ptr, row_idx, _) = two_ring(6, 60.0);
+        let (nbrs, _, col_ptr, row_idx) = grid(6);
         let six = Factor::new(&nbrs, &col_ptr, &row_idx, &[], false, None).unwrap();
         assert!(six.dense.is_none());
     }

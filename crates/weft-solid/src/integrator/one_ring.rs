@@ -461,20 +461,8 @@ mod tests {
     /// 1e-6 · h a step; the first steps, before any buckling).
     #[test]
     fn a_shell_steps_to_the_same_answer_as_with_the_factor_of_h() {
-        use crate::energy::{MembraneMaterial, shell_bending};
         use crate::integrator::{Integrator, Settings};
-        let k = 16;
-        let mat = MembraneMaterial::orthotropic(2e6, 0.3, 5e-4, 1.0, 1.0, 1.0);
-        let (mut sys, state) =
-            crate::verify::membrane_sheet(k, k, 1.0, 1.0, mat, Vector3::x()).unwrap();
-        let tris: Vec<[u32; 3]> = sys.elements.membranes.iter().map(|m| m.v).collect();
-        let bending = shell_bending(&state.x, &tris, 1e-6, 0.3).unwrap();
-        sys.elements.shells = bending.vertices;
-        sys.elements.midedges = bending.triangles;
-        sys.gravity = Vector3::new(0.0, 0.0, -9.81);
-        sys.pinned[0] = true;
-        sys.pinned[k - 1] = true;
-        sys.layout = state.x.clone();
+        let (sys, state) = crate::integrator::order::tests::shell_sheet(16, 1e-6);
         let settings = Settings {
             tolerance: 1e-6,
             ..Settings::default()

@@ -197,6 +197,25 @@ pub(super) mod tests {
         (sys, state)
     }
 
+    /// A k × k sheet (1 m square, in the xy plane) with membranes (2 MPa, 0.5 mm) and shell
+    /// bending of plate stiffness `d`, gravity along −z, held at two corners of its first
+    /// row, its layout the rest shape.
+    pub(in crate::integrator) fn shell_sheet(k: usize, d: f64) -> (SolidSystem, State) {
+        use crate::energy::{MembraneMaterial, shell_bending};
+        let mat = MembraneMaterial::orthotropic(2e6, 0.3, 5e-4, 1.0, 1.0, 1.0);
+        let (mut sys, state) =
+            crate::verify::membrane_sheet(k, k, 1.0, 1.0, mat, Vector3::x()).unwrap();
+        let tris: Vec<[u32; 3]> = sys.elements.membranes.iter().map(|m| m.v).collect();
+        let bending = shell_bending(&state.x, &tris, d, 0.3).unwrap();
+        sys.elements.shells = bending.vertices;
+        sys.elements.midedges = bending.triangles;
+        sys.gravity = Vector3::new(0.0, 0.0, -9.81);
+        sys.pinned[0] = true;
+        sys.pinned[k - 1] = true;
+        sys.layout = state.x.clone();
+        (sys, state)
+    }
+
     /// The largest distance between corresponding vertices of two states.
     pub(in crate::integrator) fn farthest(a: &State, b: &State) -> f64 {
         a.x.iter()

@@ -402,9 +402,10 @@ pub(super) mod tests {
     /// A k × k grid whose vertices couple their two-ring (a shell's pattern), its positions,
     /// and the 3×3-block pattern of the integrator (both triangles, rows sorted).
     /// (vertex graph, positions, column pointers, row indices).
-    type Grid = (Vec<Vec<u32>>, Vec<Vector3<f64>>, Vec<usize>, Vec<usize>);
+    pub(in crate::integrator) type Grid =
+        (Vec<Vec<u32>>, Vec<Vector3<f64>>, Vec<usize>, Vec<usize>);
 
-    fn grid(k: usize) -> Grid {
+    pub(in crate::integrator) fn grid(k: usize) -> Grid {
         let mut nbrs = vec![Vec::new(); k * k];
         for j in 0..k {
             for i in 0..k {
@@ -444,7 +445,7 @@ pub(super) mod tests {
 
     /// Values of an SPD matrix on that pattern: off-diagonal entries from a smooth function
     /// of (row, column), symmetric, and a dominant diagonal.
-    fn spd(col_ptr: &[usize], row_idx: &[usize]) -> Vec<f64> {
+    pub(in crate::integrator) fn spd(col_ptr: &[usize], row_idx: &[usize]) -> Vec<f64> {
         let mut v = vec![0.0; row_idx.len()];
         for c in 0..col_ptr.len() - 1 {
             for k in col_ptr[c]..col_ptr[c + 1] {
