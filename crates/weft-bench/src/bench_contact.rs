@@ -44,7 +44,10 @@ fn drape(n: usize) -> Vec<SceneElement> {
     );
     cloth.secs.insert(SIDE);
     let count = cloth.vertex_count();
-    cloth.set_channel("velocity", Channel::Vec3(vec![[0.0, -0.5, 0.0]; count]));
+    cloth.set_channel(
+        "velocity",
+        Channel::Vec3(vec![[0.0, -0.5, 0.0]; count].into()),
+    );
     let mut ball = SceneElement::new(
         "ball",
         ElementKind::Collider,

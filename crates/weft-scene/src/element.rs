@@ -43,13 +43,15 @@ impl ElementKind {
     }
 }
 
-/// A named per-vertex channel.
+/// A named per-vertex channel. Its values are shared (never changed in place: a new channel
+/// replaces one), so copying an element's channels to set one of them, as a solver does with
+/// `velocity` every frame, copies none of the others' values.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Channel {
     /// One number per vertex (pin weights, masses).
-    Float(Vec<f64>),
+    Float(Arc<[f64]>),
     /// One vector per vertex (rest positions, velocities).
-    Vec3(Vec<[f64; 3]>),
+    Vec3(Arc<[[f64; 3]]>),
 }
 
 impl Channel {

@@ -138,9 +138,13 @@ impl Compiled {
     }
 
     /// The scene with simulated elements moved to `state` (and a `velocity` channel set).
-    pub fn scene_at(&self, scene: &[SceneElement], state: &State) -> Vec<SceneElement> {
+    pub fn scene_at<'a>(
+        &self,
+        scene: impl IntoIterator<Item = &'a SceneElement>,
+        state: &State,
+    ) -> Vec<SceneElement> {
         scene
-            .iter()
+            .into_iter()
             .zip(&self.ranges)
             .map(|(e, r)| {
                 let mut e = e.clone();

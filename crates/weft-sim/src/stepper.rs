@@ -374,7 +374,11 @@ impl SolidStepper {
     }
 
     /// The scene with simulated elements moved to `state` (and a `velocity` channel set).
-    pub fn scene_at(&self, scene: &[SceneElement], state: &SimState) -> Vec<SceneElement> {
+    pub fn scene_at<'a>(
+        &self,
+        scene: impl IntoIterator<Item = &'a SceneElement>,
+        state: &SimState,
+    ) -> Vec<SceneElement> {
         self.compiled.scene_at(scene, &state.solid)
     }
 }

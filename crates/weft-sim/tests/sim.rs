@@ -128,7 +128,7 @@ fn unread_secs_missing_materials_and_bad_parameters_are_reported() {
     );
 
     let mut e = cloth(3);
-    e.set_channel("rest", Channel::Vec3(vec![[0.0; 3]; 4]));
+    e.set_channel("rest", Channel::Vec3(vec![[0.0; 3]; 4].into()));
     assert_eq!(
         compile(&[e], &tree()).unwrap_err().to_string(),
         "element 'cloth': rest channel 'rest' has 4 entries but the element has 9 vertices"

@@ -59,7 +59,7 @@ fn with_rest(cx: &mut EvalCx<'_>, mut e: SceneElement) -> Result<SceneElement, N
         }
         None => e.geometry.positions().to_vec(),
     };
-    e.set_channel("rest", Channel::Vec3(rest));
+    e.set_channel("rest", Channel::Vec3(rest.into()));
     Ok(e)
 }
 
@@ -69,7 +69,7 @@ fn with_velocity(cx: &EvalCx<'_>, mut e: SceneElement) -> Result<SceneElement, N
     let v = cx.params().vec3("velocity")?;
     if v != [0.0; 3] {
         let n = e.vertex_count();
-        e.set_channel("velocity", Channel::Vec3(vec![v; n]));
+        e.set_channel("velocity", Channel::Vec3(vec![v; n].into()));
     }
     Ok(e)
 }

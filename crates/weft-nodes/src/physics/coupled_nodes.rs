@@ -150,7 +150,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             Ok(Kernel::from_fn(|cx| {
                 let v = cx.input("state")?;
                 let s = get::<CoupledState>(&v, "state")?;
-                let scene: Scene = s.compiled.scene_at(&s.scene, &s.sim.solid);
+                let scene: Scene = s.compiled.scene_at(s.scene.iter(), &s.sim.solid);
                 cx.set("scene", Value::new(scene));
                 Ok(())
             }))

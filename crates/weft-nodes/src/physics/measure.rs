@@ -211,7 +211,7 @@ mod tests {
             triangles: vec![[0, 1, 2], [1, 3, 2]],
         };
         let mut e = SceneElement::new("sheet", ElementKind::Cloth, Geometry::Mesh(mesh));
-        e.set_channel("rest", Channel::Vec3(rest));
+        e.set_channel("rest", Channel::Vec3(rest.into()));
         let w = area_weights(&e).unwrap();
         // Triangle 2: (1,0), (1,0.5), (0,1): area ½ |(0,0.5) × (−1,1)| = ¼.
         let expect = [0.5 / 3.0, 0.75 / 3.0, 0.75 / 3.0, 0.25 / 3.0];

@@ -4,8 +4,12 @@
 //! is one step of the [`SolidStepper`] from the previous frame's state, reading the scene at
 //! the new frame (so attachments follow animated transforms), and its SECs and Behavior tree
 //! there: values an animated parameter changed compile the system's coefficients again. The
-//! state checkpointed per frame is the simulation state plus the output scene; the compiled
-//! system rides along (shared), so resuming from any checkpoint continues exactly.
+//! state checkpointed per frame is the simulation state and the frame's input elements (shared
+//! with the nodes upstream, not copied); the compiled system rides along (shared), so resuming
+//! from any checkpoint continues exactly. The output scene is built from them when it is asked
+//! for, not kept with every frame's state: a frame's kept state is then its positions and
+//! velocities (a copied scene, geometry and channels, was most of it: 8.8 kB a frame on a
+//! 22-vertex ribbon, whose fresh pages cost a frame several microseconds in faults).
 
 use super::types::Scene;
 use std::collections::VecDeque;
@@ -24,7 +28,16 @@ use weft_solid::{Method, Settings};
 struct SolverState {
     compiled: Arc<Compiled>,
     sim: SimState,
-    scene: Value,
+    /// The frame's input elements (the values on `elements` that are elements).
+    inputs: Vec<Value>,
+}
+
+impl SolverState {
+    /// The input elements, simulated ones moved to the state (with a `velocity` channel).
+    fn scene(&self) -> Scene {
+        let elements = self.inputs.iter().filter_map(|v| v.get::<SceneElement>());
+        self.compiled.scene_at(elements, &self.sim.solid)
+    }
 }
 
 struct SolidSolver {
@@ -62,12 +75,15 @@ fn settings(p: &Params, max_bytes: u64) -> Result<StepperSettings, weft_graph::P
     })
 }
 
-fn scene_input(cx: &mut EvalCx<'_>) -> Result<Scene, NodeError> {
-    Ok(cx
-        .inputs("elements")?
+/// The values on `elements` that are elements (shared with upstream), and copies of them.
+fn scene_input(cx: &mut EvalCx<'_>) -> Result<(Vec<Value>, Scene), NodeError> {
+    let mut inputs = cx.inputs("elements")?;
+    inputs.retain(|v| v.get::<SceneElement>().is_some());
+    let scene = inputs
         .iter()
         .filter_map(|v| v.get::<SceneElement>().cloned())
-        .collect())
+        .collect();
+    Ok((inputs, scene))
 }
 
 impl SolidSolver {
@@ -107,7 +123,7 @@ impl SolidSolver {
 
 impl Step for SolidSolver {
     fn init(&mut self, cx: &mut EvalCx<'_>) -> Result<Value, NodeError> {
-        let scene = scene_input(cx)?;
+        let (inputs, scene) = scene_input(cx)?;
         let tree = cx.input_as::<BehaviorTree>("tree")?;
         let compiled = Arc::new(
             compile_within(&scene, &tree, Some(cx.memory_budget()))
@@ -134,11 +150,10 @@ impl Step for SolidSolver {
         }
         let stepper = self.stepper(&compiled, &params, cx.interrupt())?;
         let sim = stepper.initial_state(&scene);
-        let out = stepper.scene_at(&scene, &sim);
         Ok(Value::new(SolverState {
             compiled,
             sim,
-            scene: Value::new(out),
+            inputs,
         }))
     }
 
@@ -146,7 +161,7 @@ impl Step for SolidSolver {
         let prev = state
             .get::<SolverState>()
             .ok_or_else(|| NodeError::Failed("the state is not a solver.solid state".into()))?;
-        let scene = scene_input(cx)?;
+        let (inputs, scene) = scene_input(cx)?;
         let tree = cx.input_as::<BehaviorTree>("tree")?;
         let (frame, dt) = (cx.frame(), 1.0 / cx.context().fps);
         // Animated parameters: SEC and Behavior values are read at every frame; a change
@@ -175,7 +190,6 @@ impl Step for SolidSolver {
                 stats.retries
             ));
         }
-        let out = stepper.scene_at(&scene, &sim);
         if self.frames.len() == 1024 {
             self.frames.pop_front();
         }
@@ -185,7 +199,7 @@ impl Step for SolidSolver {
         Ok(Value::new(SolverState {
             compiled,
             sim,
-            scene: Value::new(out),
+            inputs,
         }))
     }
 
@@ -193,15 +207,15 @@ impl Step for SolidSolver {
         let s = state
             .get::<SolverState>()
             .ok_or_else(|| NodeError::Failed("the state is not a solver.solid state".into()))?;
-        cx.set("scene", s.scene.clone());
+        cx.set("scene", Value::new(s.scene()));
         Ok(())
     }
 
     fn state_bytes(&self, state: &Value, _: &weft_graph::Registry) -> usize {
+        // Positions and velocities, and BDF2's history of them when it keeps one (the input
+        // elements are shared with the nodes upstream).
         state.get::<SolverState>().map_or(0, |s| {
-            // Positions and velocities, and BDF2's history of them when it keeps one.
             48 * s.sim.solid.x.len() * (1 + usize::from(s.sim.history.is_some()))
-                + super::types::scene_bytes(&s.scene)
         })
     }
 
@@ -213,7 +227,7 @@ impl Step for SolidSolver {
     }
 
     /// The saved positions, velocities and transforms on the start frame's compiled scene;
-    /// the output scene is rebuilt from the frame's input scene, as a step does.
+    /// the frame's input elements are kept with it, as a step keeps them.
     fn load_state(
         &mut self,
         bytes: &[u8],
@@ -227,14 +241,13 @@ impl Step for SolidSolver {
         let sim = super::checkpoint::read_solid(&mut r, &init.sim)
             .and_then(|s| r.end().map(|()| s))
             .map_err(|m| NodeError::Failed(format!("checkpoint: {m}")))?;
-        let scene = scene_input(cx)?;
+        let (inputs, _) = scene_input(cx)?;
         let params = cx.params().clone();
-        let stepper = self.stepper(&init.compiled, &params, cx.interrupt())?;
-        let out = stepper.scene_at(&scene, &sim);
+        self.stepper(&init.compiled, &params, cx.interrupt())?;
         Ok(Value::new(SolverState {
             compiled: init.compiled.clone(),
             sim,
-            scene: Value::new(out),
+            inputs,
         }))
     }
 
