@@ -140,3 +140,32 @@ impl SceneElement {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Mesh;
+
+    /// Setting a channel on a copy of an element (as a solver sets `velocity` on its output
+    /// every frame) leaves the original as it was and shares the other channels' values.
+    #[test]
+    fn setting_a_channel_on_a_copy_shares_the_other_channels() {
+        let mesh = Mesh {
+            positions: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            triangles: vec![[0, 1, 2]],
+        };
+        let mut e = SceneElement::new("sheet", ElementKind::Cloth, Geometry::Mesh(mesh));
+        e.set_channel("rest", Channel::Vec3(vec![[0.5; 3]; 3].into()));
+        let mut f = e.clone();
+        f.set_channel("velocity", Channel::Vec3(vec![[0.0, -1.0, 0.0]; 3].into()));
+        let (Some(Channel::Vec3(a)), Some(Channel::Vec3(b))) =
+            (e.channels.get("rest"), f.channels.get("rest"))
+        else {
+            panic!("both have the rest channel");
+        };
+        assert!(Arc::ptr_eq(a, b));
+        assert!(e.channels.get("velocity").is_none());
+        assert_eq!(f.vec3_channel("velocity"), Some(&[[0.0, -1.0, 0.0]; 3][..]));
+        assert_eq!(e.vec3_channel("rest"), Some(&[[0.5; 3]; 3][..]));
+    }
+}
