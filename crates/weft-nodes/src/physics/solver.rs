@@ -212,10 +212,18 @@ impl Step for SolidSolver {
     }
 
     fn state_bytes(&self, state: &Value, _: &weft_graph::Registry) -> usize {
-        // Positions and velocities, and BDF2's history of them when it keeps one (the input
-        // elements are shared with the nodes upstream).
+        // Positions and velocities, BDF2's history of them when it keeps one, and the frame's
+        // input elements. Those are shared with upstream, and across frames where upstream
+        // does not change, but counted in each (as the output scene kept until the nineteenth
+        // session was): a collider moved every frame is a new element every frame, and the
+        // memory budget must see it.
         state.get::<SolverState>().map_or(0, |s| {
             48 * s.sim.solid.x.len() * (1 + usize::from(s.sim.history.is_some()))
+                + s.inputs
+                    .iter()
+                    .filter_map(|v| v.get::<SceneElement>())
+                    .map(SceneElement::heap_bytes)
+                    .sum::<usize>()
         })
     }
 
@@ -298,4 +306,65 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             .param(ParamSpec::int("contact_iterations", 200).ge(1.0).le(100_000.0).doc("ADMM iterations allowed per Newton iteration in a step with contacts (behavior.collision)")),
         |_| Ok(Kernel::Step(Box::new(SolidSolver { stepper: None, frames: VecDeque::new(), compiled: None, interrupt: None, totals: [0; 2] }))),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use weft_scene::{ElementKind, Geometry};
+    use weft_sim::{DiscreteShellMaterial, Gravity, compile};
+
+    /// A kept frame's size, which the memory budget thins the kept frames by: its positions
+    /// and velocities, and each input element's data (counted even where it is shared, as a
+    /// collider moved every frame is a new element every frame).
+    #[test]
+    fn a_kept_state_counts_its_positions_velocities_and_input_elements() {
+        let mesh = weft_scene::procedural::grid(
+            [1.0, 1.0],
+            [3, 3],
+            weft_scene::procedural::Plane::Xy,
+            [0.0; 3],
+        );
+        let cloth = SceneElement::new("cloth", ElementKind::Cloth, Geometry::Mesh(mesh));
+        let collider = SceneElement::new(
+            "ball",
+            ElementKind::Collider,
+            Geometry::Points(vec![[0.0; 3]; 100]),
+        );
+        let tree = BehaviorTree {
+            behaviors: vec![
+                Arc::new(DiscreteShellMaterial),
+                Arc::new(Gravity {
+                    acceleration: [0.0, -9.81, 0.0],
+                }),
+            ],
+        };
+        let scene = vec![cloth, collider];
+        let compiled = Arc::new(compile(&scene, &tree).unwrap());
+        let sim = SimState {
+            solid: compiled.state.clone(),
+            transforms: vec![None; 2],
+            history: None,
+            inputs: Vec::new(),
+        };
+        let inputs: Vec<Value> = scene.iter().cloned().map(Value::new).collect();
+        let state = Value::new(SolverState {
+            compiled,
+            sim,
+            inputs,
+        });
+        let solver = SolidSolver {
+            stepper: None,
+            frames: VecDeque::new(),
+            compiled: None,
+            interrupt: None,
+            totals: [0; 2],
+        };
+        let registry = crate::registry();
+        // 3 × 3 vertices (8 triangles): 48 bytes each for position and velocity, and the
+        // elements' own estimate (24 a vertex, 12 a triangle, 256 for the rest).
+        let elements: usize = scene.iter().map(SceneElement::heap_bytes).sum();
+        assert_eq!(elements, (24 * 9 + 12 * 8 + 256) + (24 * 100 + 256));
+        assert_eq!(solver.state_bytes(&state, &registry), 48 * 9 + elements);
+    }
 }
