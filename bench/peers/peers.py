@@ -173,8 +173,8 @@ class Ribbon(Settling):
         # No bending on either side (bend_scale 0 leaves the shell's bending terms out, as
         # Blender's bending 0 does): the catenary is a perfectly flexible chain. Until the
         # nineteenth session Weft's ribbon kept a millionth of the shell's bending stiffness;
-        # its sag was the same to three digits at every resolution, and those terms were half
-        # of each Newton iteration's cost.
+        # its sag was the same to three digits at every resolution, and those terms were more
+        # than half of each Newton iteration's cost (30 → 13 µs at 10 segments).
         weft = {"verts": verts, "faces": faces, "pins": pins, "clamp": False,
                 "set": {"shell.youngs_modulus": 2.0e8, "shell.poisson_ratio": 0.0, "shell.thickness": 5.0e-4,
                         "shell.bend_scale": 0.0, "density.area_density": 0.5, "damping.coefficient": 2.0}}

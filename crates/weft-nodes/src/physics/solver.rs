@@ -33,10 +33,14 @@ struct SolverState {
 }
 
 impl SolverState {
+    /// The frame's input elements.
+    fn elements(&self) -> impl Iterator<Item = &SceneElement> {
+        self.inputs.iter().filter_map(|v| v.get::<SceneElement>())
+    }
+
     /// The input elements, simulated ones moved to the state (with a `velocity` channel).
     fn scene(&self) -> Scene {
-        let elements = self.inputs.iter().filter_map(|v| v.get::<SceneElement>());
-        self.compiled.scene_at(elements, &self.sim.solid)
+        self.compiled.scene_at(self.elements(), &self.sim.solid)
     }
 }
 
@@ -75,15 +79,19 @@ fn settings(p: &Params, max_bytes: u64) -> Result<StepperSettings, weft_graph::P
     })
 }
 
-/// The values on `elements` that are elements (shared with upstream), and copies of them.
-fn scene_input(cx: &mut EvalCx<'_>) -> Result<(Vec<Value>, Scene), NodeError> {
+/// The values on `elements` that are elements (shared with upstream).
+fn element_inputs(cx: &mut EvalCx<'_>) -> Result<Vec<Value>, NodeError> {
     let mut inputs = cx.inputs("elements")?;
     inputs.retain(|v| v.get::<SceneElement>().is_some());
-    let scene = inputs
+    Ok(inputs)
+}
+
+/// Copies of the elements among `inputs` (the compiler and the stepper read a scene).
+fn copies(inputs: &[Value]) -> Scene {
+    inputs
         .iter()
         .filter_map(|v| v.get::<SceneElement>().cloned())
-        .collect();
-    Ok((inputs, scene))
+        .collect()
 }
 
 impl SolidSolver {
@@ -123,7 +131,8 @@ impl SolidSolver {
 
 impl Step for SolidSolver {
     fn init(&mut self, cx: &mut EvalCx<'_>) -> Result<Value, NodeError> {
-        let (inputs, scene) = scene_input(cx)?;
+        let inputs = element_inputs(cx)?;
+        let scene = copies(&inputs);
         let tree = cx.input_as::<BehaviorTree>("tree")?;
         let compiled = Arc::new(
             compile_within(&scene, &tree, Some(cx.memory_budget()))
@@ -161,7 +170,8 @@ impl Step for SolidSolver {
         let prev = state
             .get::<SolverState>()
             .ok_or_else(|| NodeError::Failed("the state is not a solver.solid state".into()))?;
-        let (inputs, scene) = scene_input(cx)?;
+        let inputs = element_inputs(cx)?;
+        let scene = copies(&inputs);
         let tree = cx.input_as::<BehaviorTree>("tree")?;
         let (frame, dt) = (cx.frame(), 1.0 / cx.context().fps);
         // Animated parameters: SEC and Behavior values are read at every frame; a change
@@ -219,11 +229,7 @@ impl Step for SolidSolver {
         // memory budget must see it.
         state.get::<SolverState>().map_or(0, |s| {
             48 * s.sim.solid.x.len() * (1 + usize::from(s.sim.history.is_some()))
-                + s.inputs
-                    .iter()
-                    .filter_map(|v| v.get::<SceneElement>())
-                    .map(SceneElement::heap_bytes)
-                    .sum::<usize>()
+                + s.elements().map(SceneElement::heap_bytes).sum::<usize>()
         })
     }
 
@@ -249,7 +255,7 @@ impl Step for SolidSolver {
         let sim = super::checkpoint::read_solid(&mut r, &init.sim)
             .and_then(|s| r.end().map(|()| s))
             .map_err(|m| NodeError::Failed(format!("checkpoint: {m}")))?;
-        let (inputs, _) = scene_input(cx)?;
+        let inputs = element_inputs(cx)?;
         let params = cx.params().clone();
         self.stepper(&init.compiled, &params, cx.interrupt())?;
         Ok(Value::new(SolverState {
