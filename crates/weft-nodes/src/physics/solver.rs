@@ -44,6 +44,7 @@ impl SolverState {
     }
 }
 
+#[derive(Default)]
 struct SolidSolver {
     stepper: Option<SolidStepper>,
     frames: VecDeque<(i64, FrameStats)>,
@@ -310,7 +311,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             .param(ParamSpec::int("max_iterations", 50).ge(1.0).le(10_000.0).doc("Newton iteration limit per step"))
             .param(ParamSpec::int("max_retries", 4).ge(0.0).le(16.0).doc("levels of step halving when a step fails"))
             .param(ParamSpec::int("contact_iterations", 200).ge(1.0).le(100_000.0).doc("ADMM iterations allowed per Newton iteration in a step with contacts (behavior.collision)")),
-        |_| Ok(Kernel::Step(Box::new(SolidSolver { stepper: None, frames: VecDeque::new(), compiled: None, interrupt: None, totals: [0; 2] }))),
+        |_| Ok(Kernel::Step(Box::new(SolidSolver::default()))),
     )
 }
 
@@ -359,13 +360,7 @@ mod tests {
             sim,
             inputs,
         });
-        let solver = SolidSolver {
-            stepper: None,
-            frames: VecDeque::new(),
-            compiled: None,
-            interrupt: None,
-            totals: [0; 2],
-        };
+        let solver = SolidSolver::default();
         let registry = crate::registry();
         // 3 × 3 vertices (8 triangles): 48 bytes each for position and velocity, and the
         // elements' own estimate (24 a vertex, 12 a triangle, 256 for the rest).
