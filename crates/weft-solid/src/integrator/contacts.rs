@@ -15,7 +15,7 @@
 
 use super::{Integrator, Mode, NONE};
 use crate::contact::{residual, solve_local};
-use crate::settings::{Settings, StepError, StepStats};
+use crate::settings::{Method, Settings, StepError, StepStats};
 use crate::system::{SolidSystem, State};
 use nalgebra::{Matrix3, Vector3};
 
@@ -306,7 +306,8 @@ impl Integrator {
     /// [`Integrator::step`] with `set.contacts`: implicit Euler whose end-of-step velocities
     /// obey Signorini–Coulomb at every contact. ADMM stops when the split's primal and dual
     /// residuals are below `settings.tolerance` [m/s], within `set.max_admm` iterations a
-    /// Newton iteration; each Newton update is line-searched on the primal objective.
+    /// Newton iteration; each Newton update is line-searched on the primal objective. With
+    /// no contacts, a Newton method's step is [`Integrator::step_from`]'s (from the guess).
     pub fn step_contacts(
         &mut self,
         sys: &SolidSystem,
@@ -342,6 +343,27 @@ impl Integrator {
         });
         let mut x = state.x.clone();
         self.predict(sys, state, &mut x, &target, guess, h);
+        // No contacts (none detected ahead; the exact check may still add some, and the
+        // step is then solved again from this answer): the contact-free Newton, whose exact
+        // Hessians (inertia added where indefinite) converge quadratically where ADMM's
+        // projected ones converge linearly — 4–5 iterations a step on hair_on_head's strands
+        // before they reach the head, against 7–8. Measured (24 frames, Newton iterations a
+        // step): hair_on_head 13.54 → 12.23, hair_pile 12.68 → 12.18 (and 3 → 0 retried
+        // substeps), cloth_pile 12.61 → 12.39, cloth_drape 14.21 → 14.20.
+        if contacts.is_empty()
+            && matches!(settings.method, Method::Newton | Method::ProjectedNewton)
+        {
+            let stats = self.minimize(sys, &mut x, &x0, Mode::Dynamic { h }, settings)?;
+            for i in 0..self.n {
+                state.v[i] = (x[i] - x0[i]) / h;
+            }
+            state.x = x;
+            let cstats = ContactStats {
+                pattern_rebuilt: rebuilt,
+                ..Default::default()
+            };
+            return Ok((stats, cstats));
+        }
         let (index, active) = self.activate(sys, contacts)?;
         // ρ_c = σ ρ̂_c: ρ̂_c the point's effective mass along the normal, h² / Σⱼ wⱼ²/dⱼ with
         // dⱼ = nᵀ(M + h²K)ⱼⱼ n (a diagonal Delassus approximation, Daviet 2020), σ one scale
