@@ -171,8 +171,9 @@ pub struct Integrator {
     /// Where the pattern holds the two-ring of wide elements (shell bending) and a factor of
     /// its one-ring costs much less: that sparser matrix, preconditioning conjugate
     /// gradients on H in the steps' Newton iterations (`one_ring.rs`). Built at the first
-    /// step that uses it; a contact step never does (it factors H, and a rebuild for its
-    /// contacts' blocks starts a new integrator without it).
+    /// step that uses it; a contact step's ADMM never does (it factors H; a contact step
+    /// without contacts is a contact-free step, and a rebuild for contacts' blocks starts a
+    /// new integrator without it).
     one_ring: Option<one_ring::OneRing>,
     /// Whether `one_ring` was built (or found not to pay) for this pattern.
     one_ring_tried: bool,

@@ -125,6 +125,9 @@ pub struct ContactSet<'a> {
     /// in [`Integrator::step_from`]; `None`: x⁰ + h v⁰. Ignored when of the wrong length or
     /// not finite.
     pub guess: Option<&'a [Vector3<f64>]>,
+    /// ADMM's first scale σ of every contact's ρ = σ ρ̂ (the last solve's
+    /// [`ContactStats::sigma`] when a step is solved again; 0 or not finite: 1).
+    pub sigma: f64,
 }
 
 /// What the contact solve did over a step.
@@ -149,6 +152,8 @@ pub struct ContactStats {
     /// Each contact's impulse in its frame [N·s] (normal first), in `contacts`' order (zero
     /// for contacts on held vertices).
     pub impulses: Vec<[f64; 3]>,
+    /// ADMM's scale σ of ρ at the end (0 when no ADMM ran).
+    pub sigma: f64,
 }
 
 impl Integrator {
@@ -370,7 +375,12 @@ impl Integrator {
         // for every contact, balanced between the ADMM residuals (Boyd et al. 2011, §3.4.1)
         // at the cost of a refactorization whenever it changes.
         let mut rho_hat = vec![0.0; active.len()];
-        let mut sigma = 1.0;
+        // Starting where the last solve of this step ended (a round solved again), else 1.
+        let mut sigma = if set.sigma > 0.0 && set.sigma.is_finite() {
+            set.sigma
+        } else {
+            1.0
+        };
         let mut rho = vec![0.0; active.len()];
         // Per contact: left out of this Newton iteration's augmented terms (see below).
         let mut free = vec![false; active.len()];
@@ -684,6 +694,7 @@ impl Integrator {
             }
             return Err(stats.not_converged(settings.tolerance));
         }
+        cstats.sigma = sigma;
         for (k, a) in active.iter().enumerate() {
             let c = a.c;
             let mut u = c.relative_velocity(&x, &x0, h);
@@ -839,6 +850,7 @@ mod tests {
                         max_admm: 200,
                         warm: &[],
                         guess: None,
+                        sigma: 0.0,
                     },
                 )
                 .unwrap();
@@ -903,6 +915,7 @@ mod tests {
                             max_admm: 200,
                             warm: &[],
                             guess: None,
+                            sigma: 0.0,
                         },
                     )
                     .unwrap();
@@ -961,6 +974,7 @@ mod tests {
                     max_admm: 500,
                     warm: &[],
                     guess: None,
+                    sigma: 0.0,
                 };
                 let (_, cs) = integ
                     .step_contacts(&sys, &mut s, None, h, &settings, set)
@@ -992,6 +1006,7 @@ mod tests {
             max_admm: 500,
             warm: &[],
             guess: None,
+            sigma: 0.0,
         };
         let (_, cs) = integ
             .step_contacts(&sys, &mut s, None, h, &settings, set)
@@ -1033,6 +1048,7 @@ mod tests {
                 max_admm: 1000,
                 warm: &[],
                 guess: None,
+                sigma: 0.0,
             };
             integ
                 .step_contacts(&sys, &mut s, None, h, &settings, set)
@@ -1070,6 +1086,7 @@ mod tests {
             max_admm: 2000,
             warm: &[],
             guess: None,
+            sigma: 0.0,
         };
         let (_, cs) = integ
             .step_contacts(&sys, &mut s, None, h, &settings, set)
@@ -1169,6 +1186,7 @@ mod tests {
                         max_admm: 500,
                         warm: &[],
                         guess: None,
+                        sigma: 0.0,
                     },
                 )
                 .unwrap();
