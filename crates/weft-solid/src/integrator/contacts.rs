@@ -341,13 +341,6 @@ impl Integrator {
         sys.check(state)?;
         // First: a rebuild resets every work buffer (the prediction's among them).
         let rebuilt = self.ensure_extra(sys, self.contact_blocks(contacts))?;
-        let x0 = state.x.clone();
-        let target = |i: usize| pinned_to.map_or(x0[i], |p| p[i]);
-        let guess = set.guess.filter(|g| {
-            g.len() == state.x.len() && g.iter().all(|p| p.iter().all(|c| c.is_finite()))
-        });
-        let mut x = state.x.clone();
-        self.predict(sys, state, &mut x, &target, guess, h);
         // No contacts (none detected ahead; the exact check may still add some, and the
         // step is then solved again from this answer): the contact-free Newton, whose exact
         // Hessians (inertia added where indefinite) converge quadratically where ADMM's
@@ -358,17 +351,20 @@ impl Integrator {
         if contacts.is_empty()
             && matches!(settings.method, Method::Newton | Method::ProjectedNewton)
         {
-            let stats = self.minimize(sys, &mut x, &x0, Mode::Dynamic { h }, settings)?;
-            for i in 0..self.n {
-                state.v[i] = (x[i] - x0[i]) / h;
-            }
-            state.x = x;
+            let stats = self.step_from(sys, state, set.guess, pinned_to, h, settings)?;
             let cstats = ContactStats {
                 pattern_rebuilt: rebuilt,
                 ..Default::default()
             };
             return Ok((stats, cstats));
         }
+        let x0 = state.x.clone();
+        let target = |i: usize| pinned_to.map_or(x0[i], |p| p[i]);
+        let guess = set.guess.filter(|g| {
+            g.len() == state.x.len() && g.iter().all(|p| p.iter().all(|c| c.is_finite()))
+        });
+        let mut x = state.x.clone();
+        self.predict(sys, state, &mut x, &target, guess, h);
         let (index, active) = self.activate(sys, contacts)?;
         // ρ_c = σ ρ̂_c: ρ̂_c the point's effective mass along the normal, h² / Σⱼ wⱼ²/dⱼ with
         // dⱼ = nᵀ(M + h²K)ⱼⱼ n (a diagonal Delassus approximation, Daviet 2020), σ one scale
