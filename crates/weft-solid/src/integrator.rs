@@ -88,6 +88,8 @@ enum Hessians {
     Projected,
     /// [`crate::energy::Element::eval_first`]: exact where cheap; the sum may be indefinite.
     First,
+    /// [`crate::energy::Element::eval_contact`]: a contact step's model (exact for rods).
+    Contact,
 }
 
 /// Inertia added, as a fraction of mᵢ/h² per vertex, the first time an exact Hessian is not
@@ -664,6 +666,7 @@ impl Integrator {
                     }
                     (None, Hessians::Projected) => el.eval(x, true, local),
                     (None, Hessians::First) => el.eval_first(x, local),
+                    (None, Hessians::Contact) => el.eval_contact(x, local),
                 }
                 // SAFETY: see `Shared`: elements run concurrently write disjoint entries, and
                 // `per_element[ei]` belongs to this element alone.
@@ -696,6 +699,7 @@ impl Integrator {
                 match hessians {
                     Hessians::Projected => el.eval(x, true, &mut local),
                     Hessians::First => el.eval_first(x, &mut local),
+                    Hessians::Contact => el.eval_contact(x, &mut local),
                 }
                 let k3 = 3 * el.vertices().len();
                 self.per_element.borrow_mut()[ei] =
@@ -1633,7 +1637,7 @@ mod tests {
         let h = 1.0 / 48.0;
         let mut it = Integrator::new(&sys).unwrap();
         let dofs = 3 * it.n_free;
-        for hessians in [Hessians::Projected, Hessians::First] {
+        for hessians in [Hessians::Projected, Hessians::First, Hessians::Contact] {
             it.x_hat = x.clone();
             it.assemble_with(&sys, &x, &x, Mode::Dynamic { h }, hessians);
             let mut dense = vec![0.0; dofs * dofs];
@@ -1650,6 +1654,7 @@ mod tests {
                 match hessians {
                     Hessians::Projected => e.eval(&x, true, &mut local),
                     Hessians::First => e.eval_first(&x, &mut local),
+                    Hessians::Contact => e.eval_contact(&x, &mut local),
                 }
                 let v = e.vertices();
                 for (a, &va) in v.iter().enumerate() {

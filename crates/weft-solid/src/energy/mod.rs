@@ -99,6 +99,12 @@ pub trait Element: Sync {
     fn eval_first(&self, x: &[Vector3<f64>], out: &mut Local) {
         self.eval(x, true, out);
     }
+    /// Energy, gradient and the Hessian of a contact step's Newton model (ADMM solves on it,
+    /// and its factorization is never tested for definiteness): the projected one, except
+    /// for rods, whose exact Hessian is kept (see the rod elements).
+    fn eval_contact(&self, x: &[Vector3<f64>], out: &mut Local) {
+        self.eval(x, true, out);
+    }
 }
 
 /// Stacks the stencil's positions into one vector.

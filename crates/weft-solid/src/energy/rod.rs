@@ -23,6 +23,15 @@ impl Element for RodStretch {
         // Exact: no dearer than the projected one.
         self.eval(x, false, out);
     }
+    fn eval_contact(&self, x: &[Vector3<f64>], out: &mut Local) {
+        // Exact in a contact step's Newton model as well: on projected Hessians a strand
+        // resting on a collider converged linearly (hair_on_head's sliding steps crawled at
+        // residual ratios up to 0.98 an iteration near the tolerance). Measured, 24 frames,
+        // Newton iterations a step: hair_on_head 10.54 → 9.79, hair_pile 10.96 → 10.70.
+        // Membranes keep projected Hessians there: exact ones made cloth_drape's ADMM
+        // models near-singular (20 retried substeps, 4× slower).
+        self.eval(x, false, out);
+    }
     fn energy(&self, x: &[Vector3<f64>]) -> f64 {
         let l = (x[self.v[1] as usize] - x[self.v[0] as usize]).norm();
         let s = l / self.rest_length - 1.0;
@@ -108,6 +117,10 @@ impl Element for RodBend {
     }
     fn eval_first(&self, x: &[Vector3<f64>], out: &mut Local) {
         // Exact: no dearer than the projected one.
+        self.eval(x, false, out);
+    }
+    fn eval_contact(&self, x: &[Vector3<f64>], out: &mut Local) {
+        // Exact in contact steps too: see `RodStretch`.
         self.eval(x, false, out);
     }
     fn energy(&self, x: &[Vector3<f64>]) -> f64 {
@@ -303,6 +316,10 @@ impl Element for RodClamp {
     }
     fn eval_first(&self, x: &[Vector3<f64>], out: &mut Local) {
         // Exact: no dearer than the projected one.
+        self.eval(x, false, out);
+    }
+    fn eval_contact(&self, x: &[Vector3<f64>], out: &mut Local) {
+        // Exact in contact steps too: see `RodStretch`.
         self.eval(x, false, out);
     }
     fn energy(&self, x: &[Vector3<f64>]) -> f64 {
