@@ -109,6 +109,8 @@ impl Contacts {
     /// primitives of the solids still pass through each other, the step fails with
     /// [`StepError::Intersecting`] so that the caller retries it smaller, unless `last_try`:
     /// then the free vertices are cut back to the last time continuous detection proved safe.
+    /// Unless `last_try`, a solve whose ADMM stalls once Newton has converged fails early
+    /// too (`ContactSet::give_up`), for the same retry.
     /// Counts go to `cs`.
     #[allow(clippy::too_many_arguments)]
     pub fn step(
@@ -176,6 +178,7 @@ impl Contacts {
                     warm: &impulses,
                     guess: last.as_deref().or(guess),
                     sigma,
+                    give_up: !last_try,
                 },
             )?;
             cs.admm_iterations += contact.admm_iterations;
