@@ -732,7 +732,7 @@ impl Detector {
             // closest at its predicted end (x₀ + h v₀). A strand sliding over a curved
             // collider touches it where it will be, not where it was: with the start's point
             // alone, hair_on_head's contact steps were solved again 58 times in 48 steps,
-            // each check adding the points the segments sagged at (0.1–0.8 mm inside the 2 mm
+            // each check adding the points the segments sagged at (up to 1.05 mm inside the 2 mm
             // kept); with both, 37 times (Newton iterations a step 11.29 → 10.54). The end's
             // point only for a segment that has the start's (one closest at its ends at the
             // start is its vertices' to hold; adding theirs too: 44 times). More points along

@@ -99,9 +99,10 @@ pub trait Element: Sync {
     fn eval_first(&self, x: &[Vector3<f64>], out: &mut Local) {
         self.eval(x, true, out);
     }
-    /// Energy, gradient and the Hessian of a contact step's Newton model (ADMM solves on it,
-    /// and its factorization is never tested for definiteness): the projected one, except
-    /// for rods, whose exact Hessian is kept (see the rod elements).
+    /// Energy, gradient and the Hessian of a contact step's Newton model (ADMM solves on it;
+    /// a factorization that fails is regularized by a diagonal shift, not retried with other
+    /// Hessians): the projected one, except for rods, whose exact Hessian is kept (see the rod
+    /// elements).
     fn eval_contact(&self, x: &[Vector3<f64>], out: &mut Local) {
         self.eval(x, true, out);
     }
