@@ -154,36 +154,104 @@ impl Membrane {
     }
 }
 
+/// The eigenvalues (larger first) of the symmetric 2×2 matrix with entries a, b (off the
+/// diagonal) and d, in closed form.
+fn eigenvalues2(a: f64, b: f64, d: f64) -> (f64, f64) {
+    let mean = 0.5 * (a + d);
+    let r = (0.25 * (a - d) * (a - d) + b * b).sqrt();
+    (mean + r, mean - r)
+}
+
+/// l · v vᵀ / ‖v‖² for v an eigenvector of eigenvalue `l`: (b, l − a) or (l − d, b),
+/// whichever is the longer (stable); `None` when both vanish (a multiple of the identity).
+fn eigen_term(a: f64, b: f64, d: f64, eig: f64, l: f64) -> Option<Matrix2<f64>> {
+    let (u, v) = if (eig - a).abs() >= (eig - d).abs() {
+        (b, eig - a)
+    } else {
+        (eig - d, b)
+    };
+    let n2 = u * u + v * v;
+    if n2 == 0.0 {
+        return None;
+    }
+    let k = l / n2;
+    Some(Matrix2::new(k * u * u, k * u * v, k * u * v, k * v * v))
+}
+
 /// The positive semidefinite part of a symmetric 2×2 matrix (negative eigenvalues set to 0),
 /// in closed form.
 fn psd_part(s: &Matrix2<f64>) -> Matrix2<f64> {
     let (a, b, d) = (s[(0, 0)], s[(0, 1)], s[(1, 1)]);
-    let mean = 0.5 * (a + d);
-    let r = (0.25 * (a - d) * (a - d) + b * b).sqrt();
-    let (l1, l2) = (mean + r, mean - r);
+    let (l1, l2) = eigenvalues2(a, b, d);
     if l2 >= 0.0 {
         return *s;
     }
     if l1 <= 0.0 {
         return Matrix2::zeros();
     }
-    // Eigenvector of l1: (b, l1 − a) or (l1 − d, b), whichever is the longer (stable).
-    let (u, v) = if (l1 - a).abs() >= (l1 - d).abs() {
-        (b, l1 - a)
-    } else {
-        (l1 - d, b)
-    };
-    let n2 = u * u + v * v;
-    if n2 == 0.0 {
-        return Matrix2::new(l1.max(0.0), 0.0, 0.0, l1.max(0.0));
+    // l1 v₁ v₁ᵀ alone.
+    eigen_term(a, b, d, l1, l1).unwrap_or_else(|| Matrix2::new(l1.max(0.0), 0.0, 0.0, l1.max(0.0)))
+}
+
+/// `s` with its eigenvalues raised to at least −`floor` (`floor` ≥ 0), in closed form.
+fn clamp_below(s: &Matrix2<f64>, floor: f64) -> Matrix2<f64> {
+    let (a, b, d) = (s[(0, 0)], s[(0, 1)], s[(1, 1)]);
+    let (l1, l2) = eigenvalues2(a, b, d);
+    if l2 >= -floor {
+        return *s;
     }
-    let k = l1 / n2;
-    Matrix2::new(k * u * u, k * u * v, k * u * v, k * v * v)
+    if l1 <= -floor {
+        return Matrix2::from_diagonal_element(-floor);
+    }
+    // Raise l2 alone: S + (−floor − l2) v₂ v₂ᵀ.
+    match eigen_term(a, b, d, l2, -floor - l2) {
+        Some(t) => s + t,
+        None => Matrix2::new(a.max(-floor), 0.0, 0.0, d.max(-floor)),
+    }
+}
+
+impl Membrane {
+    /// λ_max(Σ_a w_a w_aᵀ): the geometric term Ā (Wᵀ S W) ⊗ I₃ has eigenvalues at least
+    /// Ā λ_min(S) times this when λ_min(S) < 0.
+    fn shape_norm2(&self) -> f64 {
+        let mut m = Matrix2::zeros();
+        for w in &self.w {
+            m += w * w.transpose();
+        }
+        let (a, b, d) = (m[(0, 0)], m[(0, 1)], m[(1, 1)]);
+        0.5 * (a + d) + (0.25 * (a - d) * (a - d) + b * b).sqrt()
+    }
+}
+
+/// What the Hessian's geometric term Ā (Wᵀ S W) ⊗ I₃ keeps of the second Piola–Kirchhoff
+/// stress S, the one part of a membrane's Hessian that can be indefinite.
+#[derive(Clone, Copy)]
+enum Geo {
+    /// S itself: the exact Hessian.
+    Exact,
+    /// S's PSD part: a PSD Hessian.
+    Psd,
+    /// S with its eigenvalues raised to at least −floor: a Hessian at least −floor Ā ‖W‖².
+    Floor(f64),
 }
 
 impl Element for Membrane {
     fn vertices(&self) -> &[u32] {
         &self.v
+    }
+    fn spends_budget(&self) -> bool {
+        true
+    }
+    fn eval_contact(&self, x: &[Vector3<f64>], budget: f64, out: &mut Local) {
+        // A Hessian at least −budget: the material part is PSD and the geometric part at
+        // least Ā λ_min(S) ‖W‖², so S's eigenvalues are clamped at −budget / (Ā ‖W‖²). With
+        // the PSD part alone (budget 0) a compressed sheet converges linearly wherever it
+        // rests on a contact (hair_pile's sheet: a step's largest update growing 1.12× an
+        // iteration for 20 iterations); the exact Hessian there makes the contact
+        // step's model indefinite, and ADMM on it diverged (BENCHMARKS.md, twenty-fourth
+        // session).
+        let floor = budget.max(0.0) / (self.area * self.shape_norm2());
+        self.eval_geo(x, Geo::Floor(floor), out);
     }
     fn eval_first(&self, x: &[Vector3<f64>], out: &mut Local) {
         // The exact Hessian costs no more than the projected one.
@@ -193,6 +261,13 @@ impl Element for Membrane {
         self.area * self.material.density(&Self::strain(&self.deformation(x)))
     }
     fn eval(&self, x: &[Vector3<f64>], project: bool, out: &mut Local) {
+        self.eval_geo(x, if project { Geo::Psd } else { Geo::Exact }, out);
+    }
+}
+
+impl Membrane {
+    /// Energy, gradient and the Hessian with the geometric term as `geo_mode` says.
+    fn eval_geo(&self, x: &[Vector3<f64>], geo_mode: Geo, out: &mut Local) {
         let f = self.deformation(x);
         let e = Self::strain(&f);
         let s = self.material.stress(&e);
@@ -213,7 +288,11 @@ impl Element for Membrane {
         // eigenproblem instead of projecting the 6×6 ∂P/∂F; Teran et al. 2005 project the
         // same quantity). Measured on the hanging cloth: the same Newton iterations as the
         // nearest-PSD projection of the 6×6 matrix, assembly 25 % faster.
-        let s_geo = if project { psd_part(&s) } else { s };
+        let s_geo = match geo_mode {
+            Geo::Exact => s,
+            Geo::Psd => psd_part(&s),
+            Geo::Floor(floor) => clamp_below(&s, floor),
+        };
         // dS for the unit strains sym(eⱼ w_bᵀ), per b and j.
         let mut ds = [[Matrix2::<f64>::zeros(); 2]; 3];
         for (b, dsb) in ds.iter_mut().enumerate() {
@@ -317,34 +396,95 @@ mod tests {
         assert!((mat.c11 - 2e2 / (1.0 - 0.0625)).abs() < 1e-9);
     }
 
-    #[test]
-    fn psd_part_matches_the_eigendecomposition() {
-        // Reference: nalgebra's symmetric eigensolver, negative eigenvalues set to zero.
-        // 1e-14 relative: both are a few rounding errors from the exact answer.
-        for (a, b, d) in [
-            (2.0, 0.5, 1.0),
-            (-1.0, 0.3, 2.0),
-            (1.0, 0.0, -3.0),
-            (-3.0, 0.0, 1.0),
-            (-1.0, -0.2, -2.0),
-            (1e3, 2e3, -5e2),
-            (0.0, 1.0, 0.0),
-        ] {
+    /// Symmetric 2×2 cases: definite, indefinite, diagonal, negative definite, large,
+    /// zero diagonal, a negative multiple of the identity plus a coupling.
+    const SYMMETRIC_2X2: [(f64, f64, f64); 8] = [
+        (2.0, 0.5, 1.0),
+        (-1.0, 0.3, 2.0),
+        (1.0, 0.0, -3.0),
+        (-3.0, 0.0, 1.0),
+        (-1.0, -0.2, -2.0),
+        (1e3, 2e3, -5e2),
+        (0.0, 1.0, 0.0),
+        (-4.0, 1.0, -4.0),
+    ];
+
+    /// Checks `f` against nalgebra's symmetric eigensolver with the eigenvalues raised to
+    /// −floor, to 1e-14 relative (both are a few rounding errors from the exact answer).
+    fn matches_eigendecomposition(floor: f64, f: impl Fn(&Matrix2<f64>) -> Matrix2<f64>) {
+        for (a, b, d) in SYMMETRIC_2X2 {
             let m = Matrix2::new(a, b, b, d);
             let eig = m.symmetric_eigen();
             let mut want = Matrix2::<f64>::zeros();
             for k in 0..2 {
                 let q = eig.eigenvectors.column(k);
                 let l: f64 = eig.eigenvalues[k];
-                want += l.max(0.0) * q * q.transpose();
+                want += l.max(-floor) * q * q.transpose();
             }
-            let got = psd_part(&m);
+            let got = f(&m);
             assert!(
-                (got - want).amax() <= 1e-14 * m.amax(),
-                "{m} → {got}, want {want}"
+                (got - want).amax() <= 1e-14 * m.amax().max(floor),
+                "{m}, floor {floor} → {got}, want {want}"
             );
             assert_eq!(got[(0, 1)], got[(1, 0)]);
         }
+    }
+
+    #[test]
+    fn psd_part_matches_the_eigendecomposition() {
+        matches_eigendecomposition(0.0, psd_part);
+    }
+
+    #[test]
+    fn clamp_below_matches_the_eigendecomposition() {
+        for floor in [0.0, 0.5, 2.5] {
+            matches_eigendecomposition(floor, |m| clamp_below(m, floor));
+        }
+    }
+
+    /// The contact step's Hessian of a compressed triangle: its smallest eigenvalue is at
+    /// least −budget (the bound the integrator's inertia budget relies on), it is the exact
+    /// Hessian when the budget is large, the projected one at a budget of 0 (to rounding:
+    /// clamp_below and psd_part build S₊ from different eigenvectors), and the gradient and
+    /// energy are the exact ones whatever the budget.
+    #[test]
+    fn the_contact_hessian_keeps_negative_curvature_down_to_its_budget() {
+        let mat = MembraneMaterial::orthotropic(1e5, 0.3, 1e-3, 1.0, 1.0, 1.0);
+        let m = Membrane::new([0, 1, 2], tri(), Vector3::x(), mat).unwrap();
+        let compressed = vec![
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(0.07, 0.01, 0.01),
+            Vector3::new(0.03, 0.05, -0.01),
+        ];
+        let hessian = |l: &Local| SMatrix::<f64, 9, 9>::from_fn(|r, c| l.hess[c][r]);
+        let (mut exact, mut projected, mut bounded) =
+            (Local::default(), Local::default(), Local::default());
+        m.eval(&compressed, false, &mut exact);
+        m.eval(&compressed, true, &mut projected);
+        let lowest = |h: SMatrix<f64, 9, 9>| h.symmetric_eigenvalues().min();
+        let most_negative = lowest(hessian(&exact));
+        assert!(
+            most_negative < 0.0,
+            "the case must be indefinite: {most_negative}"
+        );
+        for budget in [0.25 * -most_negative, 0.75 * -most_negative] {
+            m.eval_contact(&compressed, budget, &mut bounded);
+            let l = lowest(hessian(&bounded));
+            // 1e-9 relative to the Hessian's size: the eigensolver's rounding.
+            let tol = 1e-9 * hessian(&exact).amax();
+            assert!(
+                l >= -budget - tol,
+                "budget {budget}: smallest eigenvalue {l}"
+            );
+            assert!(l <= 0.0, "budget {budget}: negative curvature kept, {l}");
+            assert_eq!(bounded.energy, exact.energy);
+            assert_eq!(bounded.grad[..9], exact.grad[..9]);
+        }
+        m.eval_contact(&compressed, 1e30, &mut bounded);
+        assert_eq!(hessian(&bounded), hessian(&exact));
+        m.eval_contact(&compressed, 0.0, &mut bounded);
+        let gap = (hessian(&bounded) - hessian(&projected)).amax();
+        assert!(gap <= 1e-12 * hessian(&exact).amax(), "{gap}");
     }
 
     #[test]

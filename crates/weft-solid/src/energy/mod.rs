@@ -101,10 +101,19 @@ pub trait Element: Sync {
     }
     /// Energy, gradient and the Hessian of a contact step's Newton model (ADMM solves on it;
     /// a factorization that fails is regularized by a diagonal shift, not retried with other
-    /// Hessians): the projected one, except for rods, whose exact Hessian is kept (see the rod
-    /// elements).
-    fn eval_contact(&self, x: &[Vector3<f64>], out: &mut Local) {
+    /// Hessians). `budget` ≥ 0 is the negative curvature the element may keep: an element that
+    /// [`Self::spends_budget`] returns a Hessian whose smallest eigenvalue is at least
+    /// −`budget` (membranes: the exact Hessian, compression's negative curvature clamped
+    /// there); the others ignore it and return the projected Hessian, except rods, whose
+    /// exact Hessian is kept (see the rod elements).
+    fn eval_contact(&self, x: &[Vector3<f64>], budget: f64, out: &mut Local) {
+        let _ = budget;
         self.eval(x, true, out);
+    }
+    /// Whether [`Self::eval_contact`] spends its budget (the integrator divides each vertex's
+    /// inertia among the elements that do).
+    fn spends_budget(&self) -> bool {
+        false
     }
 }
 

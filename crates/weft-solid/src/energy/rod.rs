@@ -23,13 +23,14 @@ impl Element for RodStretch {
         // Exact: no dearer than the projected one.
         self.eval(x, false, out);
     }
-    fn eval_contact(&self, x: &[Vector3<f64>], out: &mut Local) {
+    fn eval_contact(&self, x: &[Vector3<f64>], _budget: f64, out: &mut Local) {
         // Exact in a contact step's Newton model as well: on projected Hessians a strand
         // resting on a collider converged linearly (hair_on_head's sliding steps crawled at
         // residual ratios up to 0.98 an iteration near the tolerance). Measured, 24 frames,
         // Newton iterations a step: hair_on_head 10.54 → 9.79, hair_pile 10.96 → 10.70.
-        // Membranes keep projected Hessians there: exact ones made cloth_drape's ADMM
-        // models near-singular (20 retried substeps, 4× slower).
+        // Membranes keep their exact Hessians there only down to a bound on their negative
+        // curvature (`Membrane::eval_contact`): fully exact ones made cloth_drape's ADMM
+        // models indefinite (20 retried substeps, 4× slower).
         self.eval(x, false, out);
     }
     fn energy(&self, x: &[Vector3<f64>]) -> f64 {
@@ -119,7 +120,7 @@ impl Element for RodBend {
         // Exact: no dearer than the projected one.
         self.eval(x, false, out);
     }
-    fn eval_contact(&self, x: &[Vector3<f64>], out: &mut Local) {
+    fn eval_contact(&self, x: &[Vector3<f64>], _budget: f64, out: &mut Local) {
         // Exact in contact steps too: see `RodStretch`.
         self.eval(x, false, out);
     }
@@ -318,7 +319,7 @@ impl Element for RodClamp {
         // Exact: no dearer than the projected one.
         self.eval(x, false, out);
     }
-    fn eval_contact(&self, x: &[Vector3<f64>], out: &mut Local) {
+    fn eval_contact(&self, x: &[Vector3<f64>], _budget: f64, out: &mut Local) {
         // Exact in contact steps too: see `RodStretch`.
         self.eval(x, false, out);
     }

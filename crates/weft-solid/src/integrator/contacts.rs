@@ -4,8 +4,9 @@
 //!
 //! ADMM on the split z_c = H_c v, H_c v = R_c(Σⱼ wⱼ vⱼ − v_c) the relative velocity of a
 //! contact's point (a vertex, or a point between vertices) in its frame. Newton outside:
-//! assemble the incremental potential's Hessian at x (element Hessians projected to PSD, but
-//! rods' exact: `Element::eval_contact`), add ρ_c/h² (w wᵀ ⊗ I) on the contact's
+//! assemble the incremental potential's Hessian at x (`Element::eval_contact`: rods' exact,
+//! membranes' exact with their negative curvature bounded by a share of the inertia so the
+//! model stays convex, the rest projected to PSD), add ρ_c/h² (w wᵀ ⊗ I) on the contact's
 //! vertex blocks (RᵀR = I; blocks between vertices that share no element, as between two
 //! solids, are added to the pattern for the step: `Integrator::ensure_extra`) and
 //! factor once. ADMM inside on that Newton model: each primal step is one solve with the same
@@ -14,7 +15,7 @@
 //! r_c/ρ_c‖² at H_c v = z_c is ∇E = Σ H_cᵀ r_c/h, the momentum balance with the colliders'
 //! impulses r_c [N·s], shared by the point's vertices in proportion to their weights.
 
-use super::{Hessians, Integrator, Mode, NONE};
+use super::{CONTACT_CURVATURE, Hessians, Integrator, Mode, NONE};
 use crate::contact::{residual, solve_local};
 use crate::settings::{Method, Settings, StepError, StepStats};
 use crate::system::{SolidSystem, State};
@@ -370,6 +371,7 @@ impl Integrator {
             };
             return Ok((stats, cstats));
         }
+        self.fill_budget(sys, h, CONTACT_CURVATURE);
         let x0 = state.x.clone();
         let target = |i: usize| pinned_to.map_or(x0[i], |p| p[i]);
         let guess = set.guess.filter(|g| {
