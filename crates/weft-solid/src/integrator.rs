@@ -116,9 +116,10 @@ const SHIFT_RESTART: f64 = 0.5;
 /// The fraction α of each vertex's inertia mᵢ/h² that a contact step's membranes may spend
 /// on their negative curvature ([`Integrator::fill_budget`]; the rest keeps the model
 /// positive definite). Measured (24 frames; Newton iterations a step, retried substeps,
-/// wall), projected membranes (α = 0) → α = 0.9: cloth_drape 14.25 → 12.58, 0 → 0, 11.3 →
-/// 10.8 s; cloth_pile 11.71 → 10.58, 0 → 0, 15.0 → 13.9 s; hair_pile over 8 rounding-level
-/// perturbations (`bench/ensemble.py`) 10.36 → 9.60, 34 → 25 retried, 9.78 → 9.63 s.
+/// wall), projected membranes (α = 0) → α = 0.9: cloth_drape 14.25 → 12.58, 0 → 0,
+/// farm-bench wall A/B 0.93; cloth_pile 11.71 → 10.58, 0 → 0, A/B 0.93; hair_pile over 8
+/// rounding-level perturbations (`bench/ensemble.py`) 10.36 → 9.60, 34 → 25 retried, mean
+/// wall 9.87 → 9.59 s (BENCHMARKS.md, twenty-fourth session).
 /// α = 0.5 gained half as much; 0.99 no more than 0.9 (cloth_drape 12.40, cloth_pile 10.88).
 const CONTACT_CURVATURE: f64 = 0.9;
 
@@ -1016,7 +1017,7 @@ impl Integrator {
     /// ADMM needs (on the exact, indefinite one it diverged). Filled again only when h or α
     /// changes.
     fn fill_budget(&mut self, sys: &SolidSystem, h: f64, alpha: f64) {
-        let n = self.per_element.borrow().len();
+        let n = sys.elements.len();
         if self.budget_for == (h, alpha) && self.budget.len() == n {
             return;
         }

@@ -218,8 +218,7 @@ impl Membrane {
         for w in &self.w {
             m += w * w.transpose();
         }
-        let (a, b, d) = (m[(0, 0)], m[(0, 1)], m[(1, 1)]);
-        0.5 * (a + d) + (0.25 * (a - d) * (a - d) + b * b).sqrt()
+        eigenvalues2(m[(0, 0)], m[(0, 1)], m[(1, 1)]).0
     }
 }
 

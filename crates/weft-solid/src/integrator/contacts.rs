@@ -5,8 +5,8 @@
 //! ADMM on the split z_c = H_c v, H_c v = R_c(Σⱼ wⱼ vⱼ − v_c) the relative velocity of a
 //! contact's point (a vertex, or a point between vertices) in its frame. Newton outside:
 //! assemble the incremental potential's Hessian at x (`Element::eval_contact`: rods' exact,
-//! membranes' exact with their negative curvature bounded by a share of the inertia so the
-//! model stays convex, the rest projected to PSD), add ρ_c/h² (w wᵀ ⊗ I) on the contact's
+//! membranes' exact with their negative curvature bounded by a share of the inertia so they
+//! cannot make the model indefinite, the rest projected to PSD), add ρ_c/h² (w wᵀ ⊗ I) on the contact's
 //! vertex blocks (RᵀR = I; blocks between vertices that share no element, as between two
 //! solids, are added to the pattern for the step: `Integrator::ensure_extra`) and
 //! factor once. ADMM inside on that Newton model: each primal step is one solve with the same
