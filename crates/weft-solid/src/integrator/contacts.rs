@@ -105,6 +105,9 @@ struct Active<'a> {
     base: [[usize; CONTACT_VERTICES]; CONTACT_VERTICES],
     /// Σ |wⱼ| mⱼ: the point's mass for its damping.
     mass: f64,
+    /// Per moving vertex: the least normal stiffness its block counts for in ρ̂ (see
+    /// `step_contacts_here`), (1 − CONTACT_CURVATURE) m/h².
+    floor: [f64; CONTACT_VERTICES],
 }
 
 impl Active<'_> {
@@ -205,6 +208,7 @@ impl Integrator {
         &self,
         sys: &SolidSystem,
         contacts: &'a [Contact],
+        h: f64,
     ) -> Result<(Vec<usize>, Vec<Active<'a>>), StepError> {
         let mut index = Vec::new();
         let mut active = Vec::new();
@@ -215,6 +219,7 @@ impl Integrator {
                 count: 0,
                 base: [[0; CONTACT_VERTICES]; CONTACT_VERTICES],
                 mass: 0.0,
+                floor: [0.0; CONTACT_VERTICES],
             };
             let mut valid = true;
             for (&v, &w) in c.vertices.iter().zip(&c.weights) {
@@ -229,6 +234,7 @@ impl Integrator {
                 a.mass += w.abs() * sys.mass[v];
                 if self.free_of[v] != NONE {
                     a.free[a.count] = (self.free_of[v] as usize, w);
+                    a.floor[a.count] = (1.0 - CONTACT_CURVATURE) * sys.mass[v] / (h * h);
                     a.count += 1;
                 }
             }
@@ -379,11 +385,17 @@ impl Integrator {
         });
         let mut x = state.x.clone();
         self.predict(sys, state, &mut x, &target, guess, h);
-        let (index, active) = self.activate(sys, contacts)?;
+        let (index, active) = self.activate(sys, contacts, h)?;
         // ρ_c = σ ρ̂_c: ρ̂_c the point's effective mass along the normal, h² / Σⱼ wⱼ²/dⱼ with
         // dⱼ = nᵀ(M + h²K)ⱼⱼ n (a diagonal Delassus approximation, Daviet 2020), σ one scale
         // for every contact, balanced between the ADMM residuals (Boyd et al. 2011, §3.4.1)
-        // at the cost of a refactorization whenever it changes.
+        // at the cost of a refactorization whenever it changes. Each dⱼ counts for at least
+        // (1 − CONTACT_CURVATURE) mⱼ/h², what the budgeted Hessians leave of the inertia:
+        // a rod's exact Hessian can take a compressed strand's block below it, to negative,
+        // and a negative ρ̂ made the augmented term concave (hair_pile's ensemble at
+        // CONTACT_CURVATURE = 0.5: iterates at 1e50 m, a failed run; at 0.9 two of its
+        // eight runs meet a negative ρ̂, and the floor moves the ensemble's mean by rounding:
+        // 9.60 → 9.59 Newton iterations a step, 25 → 23 retried substeps).
         let mut rho_hat = vec![0.0; active.len()];
         // Starting where the last solve of this step ended (a round solved again), else 1.
         let mut sigma = if set.sigma > 0.0 && set.sigma.is_finite() {
@@ -438,14 +450,14 @@ impl Integrator {
                 for (k, a) in active.iter().enumerate() {
                     let n = a.c.frame.row(0).transpose();
                     let mut compliance = 0.0;
-                    for &(f, w) in a.free() {
+                    for (j, &(f, w)) in a.free().iter().enumerate() {
                         let mut d = 0.0;
                         for aa in 0..3 {
                             for bb in 0..3 {
                                 d += n[aa] * self.values[block(self, f, aa, bb)] * n[bb];
                             }
                         }
-                        compliance += w * w / d;
+                        compliance += w * w / d.max(a.floor[j]);
                     }
                     rho_hat[k] = h * h / compliance;
                     // z starts at the relative velocity of the prediction, made admissible
@@ -814,6 +826,18 @@ mod tests {
         (sys, s, integ, settings)
     }
 
+    /// A step's contacts with no warm start, no guess and σ from 1.
+    fn cold(contacts: &[Contact], max_admm: usize) -> ContactSet<'_> {
+        ContactSet {
+            contacts,
+            max_admm,
+            warm: &[],
+            guess: None,
+            sigma: 0.0,
+            give_up: false,
+        }
+    }
+
     /// A direction with a NaN entry has a NaN size (not its finite entries' largest), so the
     /// steps that measure it report it instead of taking it.
     #[test]
@@ -1178,6 +1202,56 @@ mod tests {
         assert!(s[4].y < 1e-3, "{:?}", s[4]);
     }
 
+    /// A rod compressed to half its rest length (EA = 10⁴ N, 1 g a vertex, h = 0.01 s)
+    /// lying on a floor y = 0, both vertices touching it, gravity −y: the exact stretch
+    /// Hessian's transverse term k s/l = −10⁵ N/m outweighs the inertia m/h² = 10 N/m, so
+    /// the contact point's diagonal block along the normal is negative. Its ρ̂ must still
+    /// be positive (the inertia floor): with ρ̂ < 0 the augmented term was concave and the
+    /// iterates left for 1e50 m (hair_pile at CONTACT_CURVATURE = 0.5, frame 11). Each
+    /// step converges, the rod opens symmetrically along x (its midpoint held to 1e-12 m)
+    /// and stays on the floor (1e-9 m).
+    #[test]
+    fn a_compressed_rod_on_a_floor_keeps_a_positive_contact_stiffness() {
+        use crate::energy::RodStretch;
+        let mut sys = SolidSystem::new(vec![1e-3; 2]);
+        sys.gravity = Vector3::new(0.0, -9.81, 0.0);
+        sys.elements.stretches.push(RodStretch {
+            v: [0, 1],
+            rest_length: 0.1,
+            k: 1e4,
+        });
+        let mut s = State {
+            x: vec![
+                Vector3::new(-0.025, 0.0, 0.0),
+                Vector3::new(0.025, 0.0, 0.0),
+            ],
+            v: vec![Vector3::zeros(); 2],
+        };
+        let mut integ = Integrator::new(&sys).unwrap();
+        let settings = Settings {
+            method: Method::Newton,
+            tolerance: 1e-9,
+            max_iterations: 50,
+        };
+        let frame = Matrix3::new(0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0);
+        for _ in 0..5 {
+            let contacts: Vec<Contact> = (0..2)
+                .map(|i| Contact {
+                    frame,
+                    gap: s.x[i as usize].y,
+                    friction: 0.3,
+                    ..Contact::vertex(i)
+                })
+                .collect();
+            integ
+                .step_contacts(&sys, &mut s, None, 0.01, &settings, cold(&contacts, 500))
+                .unwrap();
+            assert!(s.x.iter().all(|p| p.y > -1e-9), "{:?}", s.x);
+            assert!((s.x[0].x + s.x[1].x).abs() < 1e-12, "{:?}", s.x);
+        }
+        assert!(s.x[1].x > 0.025, "{:?}", s.x);
+    }
+
     #[test]
     fn contacts_that_rejoin_by_a_low_rank_correction_give_the_refactorized_answer() {
         // The same 60 steps of the chain landing (its vertices' contacts leave and rejoin the
@@ -1243,21 +1317,7 @@ mod tests {
                 })
                 .collect();
             let (_, cs) = integ
-                .step_contacts(
-                    &sys,
-                    &mut s,
-                    None,
-                    0.005,
-                    &settings,
-                    ContactSet {
-                        contacts: &contacts,
-                        max_admm: 500,
-                        warm: &[],
-                        guess: None,
-                        sigma: 0.0,
-                        give_up: false,
-                    },
-                )
+                .step_contacts(&sys, &mut s, None, 0.005, &settings, cold(&contacts, 500))
                 .unwrap();
             refactorizations += cs.refactorizations;
             lowest = lowest.min(s.x.iter().map(|p| p.y).fold(f64::INFINITY, f64::min));
