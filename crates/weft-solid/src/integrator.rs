@@ -953,6 +953,13 @@ impl Integrator {
                         "{e:?} even with a diagonal shift of {applied:e}"
                     )));
                 }
+                // A NaN or infinite entry (a degenerate element, a diverged iterate) fails
+                // at every shift: say so, instead of shifting by a scale the NaN hides.
+                Err(_) if tries == 0 && self.values.iter().any(|v| !v.is_finite()) => {
+                    return Err(StepError::Factorization(
+                        "the Newton matrix has non-finite entries (NaN or infinite)".into(),
+                    ));
+                }
                 Err(_) => {
                     let more = if applied == 0.0 {
                         // The matrix is still unshifted here: its largest entry sets the
@@ -1676,6 +1683,31 @@ unsafe fn scatter(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A matrix with a NaN entry is reported as such, at once, not after eight diagonal
+    /// shifts whose scale the NaN hid (the message read "even with a diagonal shift of
+    /// 2.2e-304").
+    #[test]
+    fn a_non_finite_matrix_is_reported_not_shifted() {
+        let (sys, state) = order::tests::shell_sheet(4, 1e-3);
+        let mut it = Integrator::new(&sys).unwrap();
+        let h = 1.0 / 48.0;
+        it.x_hat = state.x.clone();
+        it.assemble_with(
+            &sys,
+            &state.x,
+            &state.x,
+            Mode::Dynamic { h },
+            Hessians::Projected,
+        );
+        let mut stats = StepStats::default();
+        assert!(it.factor(&mut stats, 0.0).is_ok());
+        it.values[0] = f64::NAN;
+        let before = stats.factorizations;
+        let err = it.factor(&mut stats, 0.0).unwrap_err().to_string();
+        assert!(err.contains("non-finite"), "{err}");
+        assert_eq!(stats.factorizations - before, 1);
+    }
 
     /// The assembled matrix (elements scattered below the diagonal, mirrored above it) is
     /// exactly symmetric and equals the sum of every element's own Hessian and the inertia,
