@@ -111,6 +111,9 @@ pub struct FrameStats {
     pub corrections: usize,
     /// Iterations the second-order corrections took (accepted or not), summed over steps.
     pub correction_iterations: usize,
+    /// Contact-step iterations taken at the sum of a geometric tail (see `weft-solid`'s
+    /// `integrator/tail.rs`), summed over steps.
+    pub extrapolations: usize,
     /// Wall time of the frame.
     pub seconds: f64,
     /// Contacts with colliders: `None` when the scene builds no contact machinery.
@@ -269,6 +272,7 @@ impl SolidStepper {
                 stats.projected_iterations += s.projected;
                 stats.corrections += s.corrections;
                 stats.correction_iterations += s.correction_sweeps;
+                stats.extrapolations += s.extrapolations;
                 *history = before.map(|b| (b, h));
                 Ok(())
             }

@@ -82,6 +82,9 @@ pub struct StepStats {
     /// Iterations those corrections took, accepted or not (tridiagonal projections along
     /// strands, or Gauss–Seidel sweeps where segments are not chains).
     pub correction_sweeps: usize,
+    /// Contact-step iterations whose step was taken at the sum of a geometric tail's series
+    /// (`integrator/tail.rs`) instead of at full length.
+    pub extrapolations: usize,
 }
 
 impl StepStats {
@@ -100,6 +103,7 @@ impl StepStats {
         self.projected += earlier.projected;
         self.corrections += earlier.corrections;
         self.correction_sweeps += earlier.correction_sweeps;
+        self.extrapolations += earlier.extrapolations;
     }
 
     /// The error of a step that ran out of iterations with these statistics.

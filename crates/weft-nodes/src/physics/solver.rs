@@ -279,6 +279,7 @@ impl Step for SolidSolver {
                     "solve_seconds": s.solve_seconds, "cg_iterations": s.cg_iterations, "seconds": s.seconds,
                     "inertia_shifts": s.inertia_shifts, "projected_iterations": s.projected_iterations,
                     "corrections": s.corrections, "correction_iterations": s.correction_iterations,
+                    "extrapolations": s.extrapolations,
                 });
                 if let Some(c) = &s.contacts {
                     j["contacts"] = super::types::contact_stats_json(c);

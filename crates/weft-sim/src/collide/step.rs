@@ -69,6 +69,8 @@ pub struct Contacts {
     contacts: Vec<Contact>,
     /// ADMM iterations allowed per Newton iteration.
     pub max_admm: usize,
+    /// The smallest distance any pair keeps between its surfaces [m] (`ContactSet::reach`).
+    reach: f64,
 }
 
 impl Contacts {
@@ -78,7 +80,14 @@ impl Contacts {
         let setup = compiled.collisions.as_ref()?;
         let detector = Detector::new(setup, scene);
         let solids = Solids::new(setup, &compiled.ranges);
+        let reach = setup
+            .pairs
+            .iter()
+            .map(|p| p.distance)
+            .chain(setup.solid_pairs.iter().map(|p| p.distance))
+            .fold(f64::INFINITY, f64::min);
         Some(Contacts {
+            reach,
             compiled,
             detector,
             solids,
@@ -179,6 +188,7 @@ impl Contacts {
                     guess: last.as_deref().or(guess),
                     sigma,
                     give_up: !last_try,
+                    reach: self.reach,
                 },
             )?;
             cs.admm_iterations += contact.admm_iterations;

@@ -15,6 +15,7 @@
 //! r_c/ρ_c‖² at H_c v = z_c is ∇E = Σ H_cᵀ r_c/h, the momentum balance with the colliders'
 //! impulses r_c [N·s], shared by the point's vertices in proportion to their weights.
 
+use super::tail::Tail;
 use super::{CONTACT_CURVATURE, Hessians, Integrator, Mode, NONE};
 use crate::contact::{residual, solve_local};
 use crate::settings::{Method, Settings, StepError, StepStats};
@@ -137,6 +138,12 @@ pub struct ContactSet<'a> {
     /// tolerance while ADMM stays off the contact laws for [`STALLED`] iterations fails
     /// then, not at the iteration limit. `false`: every iteration allowed is spent.
     pub give_up: bool,
+    /// The smallest distance [m] the contacts' detection keeps between surfaces. A step
+    /// extrapolated along a geometric tail (`tail.rs`) moves no vertex more than half of it
+    /// beyond the full step, so it cannot carry a point through a surface the step's
+    /// contacts do not hold (unbounded, hair_pile's ensemble met 17 pass-throughs where 1
+    /// was met without extrapolation). 0: no extrapolation.
+    pub reach: f64,
 }
 
 /// Newton iterations in a row with steps below the tolerance and ADMM not converged after
@@ -439,6 +446,9 @@ impl Integrator {
         let mut joined_lr = Joined::default();
         // Newton steps below the tolerance in a row while ADMM did not converge.
         let mut stalled = 0;
+        // The last full steps, to sum a geometric tail (`tail.rs`).
+        let mut tail = Tail::default();
+        tail.reset(dofs);
         for it in 0..settings.max_iterations.max(1) {
             if self.should_stop() {
                 return Err(StepError::Interrupted { iteration: it });
@@ -646,22 +656,36 @@ impl Integrator {
             }
             let e0 = phi(self, &x);
             let xmax = x.iter().fold(0.0f64, |m, p| m.max(p.amax()));
-            let mut alpha = 1.0;
+            // A direction of the model's converged contact problem that continues a
+            // geometric series of full steps is tried at the series' sum first.
+            let (mut stretch, ratio) = if admm_converged && self.tails {
+                tail.stretch(&delta)
+            } else {
+                (1.0, None)
+            };
+            if stretch > 1.0 {
+                // No vertex more than half the reach beyond the full step.
+                let far = delta
+                    .chunks_exact(3)
+                    .map(|d| (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt())
+                    .fold(0.0f64, f64::max);
+                if far > 0.0 {
+                    stretch = stretch.min(1.0 + 0.5 * set.reach / far);
+                }
+            }
+            let mut alpha = stretch;
             let mut trial = x.clone();
             loop {
-                for ((t, p), &f) in trial.iter_mut().zip(&x).zip(&self.free_of) {
-                    *t = if f == NONE {
-                        *p
-                    } else {
-                        let f = 3 * f as usize;
-                        p + alpha * Vector3::new(delta[f], delta[f + 1], delta[f + 2])
-                    };
-                }
-                self.move_members(&delta, alpha, &mut trial);
-                self.retract(sys, &mut trial);
+                self.place(sys, &x, &delta, alpha, &mut trial);
                 let unresolvable = -slope * alpha <= 64.0 * f64::EPSILON * self.force_scale * xmax;
                 if phi(self, &trial) <= e0 + 1e-4 * alpha * slope || unresolvable || alpha < 1e-10 {
                     break;
+                }
+                if alpha > 1.0 {
+                    // The extrapolation did not decrease the objective enough: shorter, down
+                    // to the full step.
+                    alpha = (0.5 * alpha).max(1.0);
+                    continue;
                 }
                 // As in the contact-free step: a second-order correction of the rods' lengths.
                 // It moves contact vertices too (by O(d²/L)): the next iteration's contact
@@ -693,6 +717,14 @@ impl Integrator {
                 stats.halvings += 1;
             }
             let step = alpha * self.step_size(&delta) / h;
+            if alpha > 1.0 {
+                stats.extrapolations += 1;
+            }
+            if admm_converged {
+                tail.taken(&delta, alpha, ratio);
+            } else {
+                tail.forget();
+            }
             x = trial;
             stats.iterations = it + 1;
             stats.residuals.push(step);
@@ -745,6 +777,28 @@ impl Integrator {
         }
         state.x = x;
         Ok((stats, cstats))
+    }
+
+    /// `trial` ← x + α·dir for the free vertices (held ones stay at x), rigid groups' members
+    /// moved with their frames and sliders retracted to their curves.
+    fn place(
+        &self,
+        sys: &SolidSystem,
+        x: &[Vector3<f64>],
+        dir: &[f64],
+        alpha: f64,
+        trial: &mut [Vector3<f64>],
+    ) {
+        for ((t, p), &f) in trial.iter_mut().zip(x).zip(&self.free_of) {
+            *t = if f == NONE {
+                *p
+            } else {
+                let f = 3 * f as usize;
+                p + alpha * Vector3::new(dir[f], dir[f + 1], dir[f + 2])
+            };
+        }
+        self.move_members(dir, alpha, trial);
+        self.retract(sys, trial);
     }
 }
 
@@ -826,6 +880,23 @@ mod tests {
         (sys, s, integ, settings)
     }
 
+    /// A contact at every vertex of `x` with the floor whose normal is axis `up` (y or z:
+    /// its first tangent x), the gap the vertex's height.
+    fn on_floor(x: &[Vector3<f64>], up: usize, friction: f64) -> Vec<Contact> {
+        let mut frame = Matrix3::zeros();
+        frame[(0, up)] = 1.0;
+        frame[(1, 0)] = 1.0;
+        frame[(2, 3 - up)] = 1.0;
+        (0..x.len() as u32)
+            .map(|i| Contact {
+                frame,
+                gap: x[i as usize][up],
+                friction,
+                ..Contact::vertex(i)
+            })
+            .collect()
+    }
+
     /// A step's contacts with no warm start, no guess and σ from 1.
     fn cold(contacts: &[Contact], max_admm: usize) -> ContactSet<'_> {
         ContactSet {
@@ -835,6 +906,7 @@ mod tests {
             guess: None,
             sigma: 0.0,
             give_up: false,
+            reach: f64::INFINITY,
         }
     }
 
@@ -896,6 +968,7 @@ mod tests {
                         guess: None,
                         sigma: 0.0,
                         give_up: false,
+                        reach: f64::INFINITY,
                     },
                 )
                 .unwrap();
@@ -955,6 +1028,7 @@ mod tests {
                 guess: None,
                 sigma: 0.0,
                 give_up,
+                reach: f64::INFINITY,
             };
             match integ.step_contacts(&sys, &mut s, None, 0.01, &settings, set) {
                 Err(StepError::ContactsNotConverged { iterations, .. }) => iterations,
@@ -1004,6 +1078,7 @@ mod tests {
                             guess: None,
                             sigma: 0.0,
                             give_up: false,
+                            reach: f64::INFINITY,
                         },
                     )
                     .unwrap();
@@ -1064,6 +1139,7 @@ mod tests {
                     guess: None,
                     sigma: 0.0,
                     give_up: false,
+                    reach: f64::INFINITY,
                 };
                 let (_, cs) = integ
                     .step_contacts(&sys, &mut s, None, h, &settings, set)
@@ -1097,6 +1173,7 @@ mod tests {
             guess: None,
             sigma: 0.0,
             give_up: false,
+            reach: f64::INFINITY,
         };
         let (_, cs) = integ
             .step_contacts(&sys, &mut s, None, h, &settings, set)
@@ -1140,6 +1217,7 @@ mod tests {
                 guess: None,
                 sigma: 0.0,
                 give_up: false,
+                reach: f64::INFINITY,
             };
             integ
                 .step_contacts(&sys, &mut s, None, h, &settings, set)
@@ -1179,6 +1257,7 @@ mod tests {
             guess: None,
             sigma: 0.0,
             give_up: false,
+            reach: f64::INFINITY,
         };
         let (_, cs) = integ
             .step_contacts(&sys, &mut s, None, h, &settings, set)
@@ -1210,6 +1289,53 @@ mod tests {
     /// iterates left for 1e50 m (hair_pile at CONTACT_CURVATURE = 0.5, frame 11). Each
     /// step converges, the rod opens symmetrically along x (its midpoint held to 1e-12 m)
     /// and stays on the floor (1e-9 m).
+    /// A sheet squeezed to 0.8 of its width on a floor, its contact steps solved with and
+    /// without summing geometric tails (`tail.rs`): the same answer in fewer iterations.
+    /// Reference: each solve stops at a full step below the tolerance τ = 1e-7 m/s, and along
+    /// a tail of ratio r ≤ 0.95 the minimizer is still up to r/(1 − r) ≤ 19 such steps
+    /// away, so after k + 1 steps the two runs may differ by 20 τ h (k + 1) (measured:
+    /// 1.4e-8 m after the first step, 1.8e-9 m after the fourth, against 4.2e-8 … 1.7e-7).
+    /// Iterations: measured 95 against 170 over four steps (17 extrapolated); asserted
+    /// at most 3/4.
+    #[test]
+    fn summing_a_geometric_tail_ends_a_contact_step_where_full_steps_end() {
+        let (tolerance, h) = (1e-7, 1.0 / 48.0);
+        let run = |tails: bool| {
+            let (sys, mut s) = super::super::order::tests::shell_sheet(8, 1e-3);
+            for p in s.x.iter_mut() {
+                p.x *= 0.8;
+            }
+            let mut integ = Integrator::new(&sys).unwrap();
+            integ.tails = tails;
+            let settings = Settings {
+                method: Method::Newton,
+                tolerance,
+                max_iterations: 200,
+            };
+            let (mut iterations, mut extrapolated) = (0, 0);
+            let mut after = Vec::new();
+            for _ in 0..4 {
+                let contacts = on_floor(&s.x, 2, 0.2);
+                let (st, _) = integ
+                    .step_contacts(&sys, &mut s, None, h, &settings, cold(&contacts, 500))
+                    .unwrap();
+                iterations += st.iterations;
+                extrapolated += st.extrapolations;
+                after.push(s.clone());
+            }
+            (after, iterations, extrapolated)
+        };
+        let (with, n_with, extrapolated) = run(true);
+        let (without, n_without, none) = run(false);
+        assert!(extrapolated > 0 && none == 0, "{extrapolated} {none}");
+        for (k, (a, b)) in with.iter().zip(&without).enumerate() {
+            let apart = super::super::order::tests::farthest(a, b);
+            let bound = 20.0 * tolerance * h * (k + 1) as f64;
+            assert!(apart < bound, "step {k}: {apart} m apart");
+        }
+        assert!(4 * n_with <= 3 * n_without, "{n_with} against {n_without}");
+    }
+
     #[test]
     fn a_compressed_rod_on_a_floor_keeps_a_positive_contact_stiffness() {
         use crate::energy::RodStretch;
@@ -1233,16 +1359,8 @@ mod tests {
             tolerance: 1e-9,
             max_iterations: 50,
         };
-        let frame = Matrix3::new(0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0);
         for _ in 0..5 {
-            let contacts: Vec<Contact> = (0..2)
-                .map(|i| Contact {
-                    frame,
-                    gap: s.x[i as usize].y,
-                    friction: 0.3,
-                    ..Contact::vertex(i)
-                })
-                .collect();
+            let contacts = on_floor(&s.x, 1, 0.3);
             integ
                 .step_contacts(&sys, &mut s, None, 0.01, &settings, cold(&contacts, 500))
                 .unwrap();

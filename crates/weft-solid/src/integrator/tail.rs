@@ -1,0 +1,131 @@
+//! Extrapolation of a linearly converging Newton tail (Aitken's Δ² along one direction).
+//!
+//! The contact step's Newton model is stiffer than the incremental potential where cloth is
+//! compressed: its membranes keep at most `CONTACT_CURVATURE` of the inertia as negative
+//! curvature, so that ADMM sees a convex model. Along a mode whose true curvature is below
+//! the model's, each full step covers the same fraction 1 − r of the distance left, and the
+//! steps form a geometric series: measured on cloth_drape's contact steps, tails of 20–40
+//! iterations whose successive steps are parallel (cosine 1.000 to three digits) with a
+//! ratio r of 0.81–0.92 that holds to 0.01. The distance left after a step d is then
+//! d r/(1 − r), so once two successive ratios agree the step is tried at 1/(1 − r) its
+//! length (the sum of the series), and the line search judges it like any other: a step
+//! that does not decrease the objective enough is halved, down to the plain full step.
+//! Measured (24 frames, Newton iterations a step): cloth_drape 12.58 → 10.55, cloth_pile
+//! 10.59 → 10.28 (mean of 8 rounding-level perturbations). The contact step bounds the
+//! stretch so no vertex moves more than half the smallest contact distance beyond the full
+//! step, and runs it only for systems without rods (`Integrator::tails`: hair's long tails
+//! are crawls, not this series, and stretching them let strands pass through strands).
+
+/// Successive steps this parallel (cosine) count as one mode's series (at 0.999, with ratios
+/// agreeing to 0.01 and no halving, the tails were found only at their ends: cloth_drape
+/// 12.32 against 10.55).
+const PARALLEL: f64 = 0.99;
+/// Two successive ratios agreeing to within this make a geometric series.
+const RATIO_AGREES: f64 = 0.05;
+/// The longest extrapolation, as a multiple of the step (the sum at r = 0.95; closer to 1
+/// the steps crawl rather than converge, and the line search halves it towards 1).
+const MAX_STRETCH: f64 = 20.0;
+
+/// The last full steps of a Newton loop, to recognize a geometric tail. Sized once per
+/// step (its buffer holds one direction).
+#[derive(Default)]
+pub(super) struct Tail {
+    last: Vec<f64>,
+    last_norm: f64,
+    /// The ratio of the last full step to the one before it, when they were parallel.
+    last_ratio: Option<f64>,
+    valid: bool,
+}
+
+impl Tail {
+    /// Forgets the steps seen (a new time step, a step that was not a plain full one).
+    pub(super) fn reset(&mut self, dofs: usize) {
+        self.last.clear();
+        self.last.resize(dofs, 0.0);
+        self.valid = false;
+        self.last_ratio = None;
+    }
+
+    /// Breaks the series (a step whose contact problem was not solved to the tolerance).
+    pub(super) fn forget(&mut self) {
+        self.valid = false;
+        self.last_ratio = None;
+    }
+
+    /// The length to try `dir` at first: `1 / (1 − r)` when `dir` continues a geometric
+    /// series of parallel full steps (its ratio r agreeing with the previous one), else 1.
+    /// Records nothing: [`Self::taken`] does once the line search has decided.
+    pub(super) fn stretch(&self, dir: &[f64]) -> (f64, Option<f64>) {
+        if !self.valid || self.last_norm == 0.0 {
+            return (1.0, None);
+        }
+        // Sequential sums: the same bits at any thread count.
+        let (mut dot, mut nn) = (0.0, 0.0);
+        for (d, l) in dir.iter().zip(&self.last) {
+            dot += d * l;
+            nn += d * d;
+        }
+        let norm = nn.sqrt();
+        if norm == 0.0 || dot < PARALLEL * norm * self.last_norm {
+            return (1.0, None);
+        }
+        let r = norm / self.last_norm;
+        let stretch = match self.last_ratio {
+            Some(q) if r < 1.0 && (r - q).abs() <= RATIO_AGREES => {
+                (1.0 / (1.0 - r)).min(MAX_STRETCH)
+            }
+            _ => 1.0,
+        };
+        (stretch, Some(r))
+    }
+
+    /// Records the step the line search took: `alpha` times `dir`, `ratio` what
+    /// [`Self::stretch`] measured. Only a plain full step (α = 1) starts or continues a series.
+    pub(super) fn taken(&mut self, dir: &[f64], alpha: f64, ratio: Option<f64>) {
+        if alpha != 1.0 {
+            self.forget();
+            return;
+        }
+        self.last_ratio = if self.valid { ratio } else { None };
+        self.last.copy_from_slice(dir);
+        self.last_norm = dir.iter().map(|d| d * d).sum::<f64>().sqrt();
+        self.valid = true;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A geometric series of parallel steps of ratio 0.9 is summed from its third step:
+    /// stretch 1/(1 − 0.9) = 10, exact to rounding.
+    #[test]
+    fn a_geometric_series_of_parallel_steps_is_summed() {
+        let mut t = Tail::default();
+        t.reset(3);
+        let dir = |k: i32| [0.9f64.powi(k), 2.0 * 0.9f64.powi(k), -0.9f64.powi(k)];
+        assert_eq!(t.stretch(&dir(0)).0, 1.0);
+        t.taken(&dir(0), 1.0, None);
+        let (s, r) = t.stretch(&dir(1));
+        assert_eq!(s, 1.0, "one ratio is not yet a series");
+        t.taken(&dir(1), 1.0, r);
+        let (s, _) = t.stretch(&dir(2));
+        assert!((s - 10.0).abs() < 1e-9, "{s}");
+    }
+
+    /// A turn, a changing ratio or a step the line search shortened breaks the series.
+    #[test]
+    fn turns_changing_ratios_and_short_steps_break_the_series() {
+        let mut t = Tail::default();
+        t.reset(2);
+        t.taken(&[1.0, 0.0], 1.0, None);
+        let (_, r) = t.stretch(&[0.9, 0.0]);
+        t.taken(&[0.9, 0.0], 1.0, r);
+        assert_eq!(t.stretch(&[0.0, 0.81]).0, 1.0, "a turn");
+        assert_eq!(t.stretch(&[0.7, 0.0]).0, 1.0, "ratio 0.78 after 0.9");
+        assert!(t.stretch(&[0.81, 0.0]).0 > 1.0);
+        t.taken(&[0.81, 0.0], 0.5, None);
+        assert_eq!(t.stretch(&[0.73, 0.0]).0, 1.0, "after a halved step");
+        assert_eq!(Tail::default().stretch(&[1.0, 0.0]).0, 1.0);
+    }
+}
