@@ -1281,19 +1281,12 @@ mod tests {
         assert!(s[4].y < 1e-3, "{:?}", s[4]);
     }
 
-    /// A rod compressed to half its rest length (EA = 10⁴ N, 1 g a vertex, h = 0.01 s)
-    /// lying on a floor y = 0, both vertices touching it, gravity −y: the exact stretch
-    /// Hessian's transverse term k s/l = −10⁵ N/m outweighs the inertia m/h² = 10 N/m, so
-    /// the contact point's diagonal block along the normal is negative. Its ρ̂ must still
-    /// be positive (the inertia floor): with ρ̂ < 0 the augmented term was concave and the
-    /// iterates left for 1e50 m (hair_pile at CONTACT_CURVATURE = 0.5, frame 11). Each
-    /// step converges, the rod opens symmetrically along x (its midpoint held to 1e-12 m)
-    /// and stays on the floor (1e-9 m).
     /// A sheet squeezed to 0.8 of its width on a floor, its contact steps solved with and
     /// without summing geometric tails (`tail.rs`): the same answer in fewer iterations.
-    /// Reference: each solve stops at a full step below the tolerance τ = 1e-7 m/s, and along
-    /// a tail of ratio r ≤ 0.95 the minimizer is still up to r/(1 − r) ≤ 19 such steps
-    /// away, so after k + 1 steps the two runs may differ by 20 τ h (k + 1) (measured:
+    /// Reference (an estimate, not a proof): each solve stops at a full step below the
+    /// tolerance τ = 1e-7 m/s, and along a tail of ratio r ≤ 0.95 the minimizer is still up
+    /// to r/(1 − r) ≤ 19 such steps away, so after k + 1 steps the two runs may differ by
+    /// about 20 τ h (k + 1) (measured:
     /// 1.4e-8 m after the first step, 1.8e-9 m after the fourth, against 4.2e-8 … 1.7e-7).
     /// Iterations: measured 95 against 170 over four steps (17 extrapolated); asserted
     /// at most 3/4.
@@ -1336,6 +1329,14 @@ mod tests {
         assert!(4 * n_with <= 3 * n_without, "{n_with} against {n_without}");
     }
 
+    /// A rod compressed to half its rest length (EA = 10⁴ N, 1 g a vertex, h = 0.01 s)
+    /// lying on a floor y = 0, both vertices touching it, gravity −y: the exact stretch
+    /// Hessian's transverse term k s/l = −10⁵ N/m outweighs the inertia m/h² = 10 N/m, so
+    /// the contact point's diagonal block along the normal is negative. Its ρ̂ must still
+    /// be positive (the inertia floor): with ρ̂ < 0 the augmented term was concave and the
+    /// iterates left for 1e50 m (hair_pile at CONTACT_CURVATURE = 0.5, frame 11). Each
+    /// step converges, the rod opens symmetrically along x (its midpoint held to 1e-12 m)
+    /// and stays on the floor (1e-9 m).
     #[test]
     fn a_compressed_rod_on_a_floor_keeps_a_positive_contact_stiffness() {
         use crate::energy::RodStretch;
