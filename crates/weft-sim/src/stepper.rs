@@ -114,6 +114,8 @@ pub struct FrameStats {
     /// Contact-step iterations taken at the sum of a geometric tail (see `weft-solid`'s
     /// `integrator/tail.rs`), summed over steps.
     pub extrapolations: usize,
+    /// Halvings of those extrapolations' trial lengths (towards the full step), summed.
+    pub shortened_extrapolations: usize,
     /// Wall time of the frame.
     pub seconds: f64,
     /// Contacts with colliders: `None` when the scene builds no contact machinery.
@@ -273,6 +275,7 @@ impl SolidStepper {
                 stats.corrections += s.corrections;
                 stats.correction_iterations += s.correction_sweeps;
                 stats.extrapolations += s.extrapolations;
+                stats.shortened_extrapolations += s.shortened_extrapolations;
                 *history = before.map(|b| (b, h));
                 Ok(())
             }

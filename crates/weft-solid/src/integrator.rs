@@ -538,7 +538,8 @@ impl Integrator {
             joined_max: contacts::JOINED_MAX,
             tails: !sys.elements.membranes.is_empty()
                 && sys.elements.stretches.is_empty()
-                && sys.elements.bends.is_empty(),
+                && sys.elements.bends.is_empty()
+                && sys.elements.clamps.is_empty(),
             slot_offset,
             parts,
         })

@@ -85,6 +85,9 @@ pub struct StepStats {
     /// Contact-step iterations whose step was taken at the sum of a geometric tail's series
     /// (`integrator/tail.rs`) instead of at full length.
     pub extrapolations: usize,
+    /// Extrapolations the line search shortened (each halving of a step longer than the
+    /// full one, down to the full step): tries the tail's sum did not pay for.
+    pub shortened_extrapolations: usize,
 }
 
 impl StepStats {
@@ -104,6 +107,7 @@ impl StepStats {
         self.corrections += earlier.corrections;
         self.correction_sweeps += earlier.correction_sweeps;
         self.extrapolations += earlier.extrapolations;
+        self.shortened_extrapolations += earlier.shortened_extrapolations;
     }
 
     /// The error of a step that ran out of iterations with these statistics.

@@ -259,6 +259,33 @@ impl Integrator {
         m
     }
 
+    /// A bound on how far any point moves per unit of α along `dir` (Euclidean): a free
+    /// vertex by its own |d|, a member by |T| + |Θ| |q|, since
+    /// |exp(a[Θ]×)q − exp(b[Θ]×)q| ≤ |a − b| |Θ| |q| (the same axis, angles apart by
+    /// |a − b| |Θ|). So placing the step at α = s instead of 1 moves no point more than
+    /// (s − 1) times this beyond where α = 1 puts it. Sequential: the same bits at any
+    /// thread count.
+    pub(super) fn largest_move(&self, dir: &[f64]) -> f64 {
+        let end = if self.groups.is_empty() {
+            dir.len()
+        } else {
+            3 * self.groups.first
+        };
+        let mut m = dir[..end]
+            .chunks_exact(3)
+            .map(|d| (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt())
+            .fold(0.0f64, f64::max);
+        for (g, members) in self.groups.members.iter().enumerate() {
+            let t = 3 * self.groups.node[g] as usize;
+            let step = Vector3::new(dir[t], dir[t + 1], dir[t + 2]).norm();
+            let turn = Vector3::new(dir[t + 3], dir[t + 4], dir[t + 5]).norm();
+            for &v in members {
+                m = m.max(step + turn * self.groups.offset[v as usize].norm());
+            }
+        }
+        m
+    }
+
     /// Adds `mu(v)` per member to its group's translation diagonal and `mu(v) |q|²` to its
     /// rotation diagonal (the isotropic part of the same shift, moved through J).
     pub(super) fn add_to_group_diagonals(&mut self, mu: &impl Fn(usize) -> f64) {
