@@ -115,7 +115,7 @@ pub struct FrameStats {
     /// `integrator/tail.rs`), summed over steps.
     pub extrapolations: usize,
     /// Halvings of those extrapolations' trial lengths (towards the full step), summed.
-    pub shortened_extrapolations: usize,
+    pub extrapolation_halvings: usize,
     /// Wall time of the frame.
     pub seconds: f64,
     /// Contacts with colliders: `None` when the scene builds no contact machinery.
@@ -275,7 +275,7 @@ impl SolidStepper {
                 stats.corrections += s.corrections;
                 stats.correction_iterations += s.correction_sweeps;
                 stats.extrapolations += s.extrapolations;
-                stats.shortened_extrapolations += s.shortened_extrapolations;
+                stats.extrapolation_halvings += s.extrapolation_halvings;
                 *history = before.map(|b| (b, h));
                 Ok(())
             }

@@ -85,9 +85,10 @@ pub struct StepStats {
     /// Contact-step iterations whose step was taken at the sum of a geometric tail's series
     /// (`integrator/tail.rs`) instead of at full length.
     pub extrapolations: usize,
-    /// Extrapolations the line search shortened (each halving of a step longer than the
-    /// full one, down to the full step): tries the tail's sum did not pay for.
-    pub shortened_extrapolations: usize,
+    /// Halvings of extrapolated trials (each halving of a step longer than the full one,
+    /// down to the full step; one try from 20 counts up to 5): what the tail's sums cost
+    /// in objective evaluations where they did not pay.
+    pub extrapolation_halvings: usize,
 }
 
 impl StepStats {
@@ -107,7 +108,7 @@ impl StepStats {
         self.corrections += earlier.corrections;
         self.correction_sweeps += earlier.correction_sweeps;
         self.extrapolations += earlier.extrapolations;
-        self.shortened_extrapolations += earlier.shortened_extrapolations;
+        self.extrapolation_halvings += earlier.extrapolation_halvings;
     }
 
     /// The error of a step that ran out of iterations with these statistics.

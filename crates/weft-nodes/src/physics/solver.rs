@@ -280,7 +280,7 @@ impl Step for SolidSolver {
                     "inertia_shifts": s.inertia_shifts, "projected_iterations": s.projected_iterations,
                     "corrections": s.corrections, "correction_iterations": s.correction_iterations,
                     "extrapolations": s.extrapolations,
-                    "shortened_extrapolations": s.shortened_extrapolations,
+                    "extrapolation_halvings": s.extrapolation_halvings,
                 });
                 if let Some(c) = &s.contacts {
                     j["contacts"] = super::types::contact_stats_json(c);

@@ -12,8 +12,9 @@
 //! that does not decrease the objective enough is halved, down to the plain full step.
 //! Measured (24 frames, Newton iterations a step): cloth_drape 12.58 → 10.55, cloth_pile
 //! 10.59 → 10.28 (mean of 8 rounding-level perturbations). The contact step bounds the
-//! stretch so no vertex moves more than half the smallest contact distance beyond the full
-//! step, and runs it only for systems without rods (`Integrator::tails`: hair's long tails
+//! stretch so no point moves more than half the smallest contact distance beyond the full
+//! step (rigid groups' members bounded by their arcs), and runs it only for systems with
+//! membranes and without rods (`Integrator::tails`: hair's long tails
 //! are crawls, not this series, and stretching them let strands pass through strands).
 
 /// Successive steps this parallel (cosine) count as one mode's series (at 0.999, with ratios
