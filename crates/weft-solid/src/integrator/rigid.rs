@@ -245,18 +245,28 @@ impl Integrator {
         }
     }
 
-    /// The largest displacement of a member by the step `dir` (its linearization).
-    pub(super) fn member_step_size(&self, dir: &[f64]) -> f64 {
+    /// The largest of `size(T, Θ, q)` over every group's members (T, Θ the group's nodes
+    /// in `dir`, q the member's offset), sequentially: the same bits at any thread count.
+    fn largest_over_members(
+        &self,
+        dir: &[f64],
+        size: impl Fn(&Vector3<f64>, &Vector3<f64>, &Vector3<f64>) -> f64,
+    ) -> f64 {
         let mut m = 0.0f64;
         for (g, members) in self.groups.members.iter().enumerate() {
             let t = 3 * self.groups.node[g] as usize;
             let step = Vector3::new(dir[t], dir[t + 1], dir[t + 2]);
             let turn = Vector3::new(dir[t + 3], dir[t + 4], dir[t + 5]);
             for &v in members {
-                m = m.max((step + turn.cross(&self.groups.offset[v as usize])).amax());
+                m = m.max(size(&step, &turn, &self.groups.offset[v as usize]));
             }
         }
         m
+    }
+
+    /// The largest displacement of a member by the step `dir` (its linearization).
+    pub(super) fn member_step_size(&self, dir: &[f64]) -> f64 {
+        self.largest_over_members(dir, |step, turn, q| (step + turn.cross(q)).amax())
     }
 
     /// A bound on how far any point moves per unit of α along `dir` (Euclidean): a free
@@ -271,19 +281,13 @@ impl Integrator {
         } else {
             3 * self.groups.first
         };
-        let mut m = dir[..end]
+        let free = dir[..end]
             .chunks_exact(3)
             .map(|d| (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt())
             .fold(0.0f64, f64::max);
-        for (g, members) in self.groups.members.iter().enumerate() {
-            let t = 3 * self.groups.node[g] as usize;
-            let step = Vector3::new(dir[t], dir[t + 1], dir[t + 2]).norm();
-            let turn = Vector3::new(dir[t + 3], dir[t + 4], dir[t + 5]).norm();
-            for &v in members {
-                m = m.max(step + turn * self.groups.offset[v as usize].norm());
-            }
-        }
-        m
+        free.max(
+            self.largest_over_members(dir, |step, turn, q| step.norm() + turn.norm() * q.norm()),
+        )
     }
 
     /// Adds `mu(v)` per member to its group's translation diagonal and `mu(v) |q|²` to its
