@@ -89,7 +89,8 @@ pub struct FrameStats {
     pub newton_iterations: usize,
     /// Most Newton iterations in one step (its rounds together).
     pub max_newton_iterations: usize,
-    /// Largest final residual of a step [m/s].
+    /// Largest final residual of a step [m/s] (where a step's Newton loop ended by its
+    /// rate, the estimate of the corrections still to come).
     pub max_residual: f64,
     /// Seconds assembling.
     pub assembly_seconds: f64,
@@ -116,6 +117,9 @@ pub struct FrameStats {
     pub extrapolations: usize,
     /// Halvings of those extrapolations' trial lengths (towards the full step), summed.
     pub extrapolation_halvings: usize,
+    /// Newton loops ended by their rate's estimate of the corrections still to come (see
+    /// `weft-solid`'s `integrator/rate.rs`), summed over steps.
+    pub rate_stops: usize,
     /// Wall time of the frame.
     pub seconds: f64,
     /// Contacts with colliders: `None` when the scene builds no contact machinery.
@@ -262,9 +266,11 @@ impl SolidStepper {
                 stats.steps += 1;
                 stats.newton_iterations += s.iterations;
                 stats.max_newton_iterations = stats.max_newton_iterations.max(s.iterations);
-                stats.max_residual = stats
-                    .max_residual
-                    .max(s.residuals.last().copied().unwrap_or(0.0));
+                stats.max_residual = stats.max_residual.max(if s.residuals.is_empty() {
+                    0.0
+                } else {
+                    s.final_residual()
+                });
                 stats.assembly_seconds += s.assembly_seconds;
                 stats.factor_seconds += s.factor_seconds;
                 stats.factorizations += s.factorizations;
@@ -276,6 +282,7 @@ impl SolidStepper {
                 stats.correction_iterations += s.correction_sweeps;
                 stats.extrapolations += s.extrapolations;
                 stats.extrapolation_halvings += s.extrapolation_halvings;
+                stats.rate_stops += s.rate_stops;
                 *history = before.map(|b| (b, h));
                 Ok(())
             }

@@ -32,7 +32,10 @@ pub struct Settings {
     /// Integration method.
     pub method: Method,
     /// Newton stops when ‖Δx‖∞ / h, the largest velocity change a further iteration would make,
-    /// is below this [m/s] (for [`Integrator::solve_static`]: ‖Δx‖∞ in metres).
+    /// is below this [m/s] (for [`Integrator::solve_static`]: ‖Δx‖∞ in metres): measured by
+    /// that iteration's step, or estimated from the contraction of the last two full steps
+    /// (at a ratio q < ½, the geometric tail r q/(1 − q) of the last step's r; time steps
+    /// only, `integrator/rate.rs`).
     pub tolerance: f64,
     /// Newton iteration limit.
     pub max_iterations: usize,
@@ -89,6 +92,13 @@ pub struct StepStats {
     /// down to the full step; one try from 20 counts up to 5): what the tail's sums cost
     /// in objective evaluations where they did not pay.
     pub extrapolation_halvings: usize,
+    /// Newton loops ended by their rate's estimate of the corrections still to come
+    /// (`integrator/rate.rs`), one iteration before a step below the tolerance would have
+    /// been measured.
+    pub rate_stops: usize,
+    /// Where the loop ended by its rate: the estimate of the corrections still to come
+    /// [m/s] (below the tolerance; the last residual is the last step's, above it).
+    pub estimate: Option<f64>,
 }
 
 impl StepStats {
@@ -109,6 +119,14 @@ impl StepStats {
         self.correction_sweeps += earlier.correction_sweeps;
         self.extrapolations += earlier.extrapolations;
         self.extrapolation_halvings += earlier.extrapolation_halvings;
+        self.rate_stops += earlier.rate_stops;
+    }
+
+    /// What the step left to converge [m/s]: the rate's estimate where the loop ended by it,
+    /// else the last iteration's residual (NaN with none).
+    pub fn final_residual(&self) -> f64 {
+        self.estimate
+            .unwrap_or_else(|| self.residuals.last().copied().unwrap_or(f64::NAN))
     }
 
     /// The error of a step that ran out of iterations with these statistics.

@@ -281,6 +281,7 @@ impl Step for SolidSolver {
                     "corrections": s.corrections, "correction_iterations": s.correction_iterations,
                     "extrapolations": s.extrapolations,
                     "extrapolation_halvings": s.extrapolation_halvings,
+                    "rate_stops": s.rate_stops,
                 });
                 if let Some(c) = &s.contacts {
                     j["contacts"] = super::types::contact_stats_json(c);
@@ -309,7 +310,7 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
             .param(ParamSpec::int("substeps", 4).ge(1.0).le(100_000.0).doc("steps per frame"))
             .param(ParamSpec::choice("method", &["newton", "linearized", "explicit", "static", "projected_newton"], "newton").doc("newton: implicit Euler to tolerance (exact Hessians where positive definite, else projected); projected_newton: the same answer with every element Hessian projected to PSD (slower where cloth buckles; for comparison); linearized: one Newton step; explicit: symplectic Euler; static: no inertia, each step finds the equilibrium under that step's loads and attachment targets (substeps load the structure gradually)"))
             .param(ParamSpec::choice("integrator", &["euler", "bdf2"], "euler").doc("time integration of the implicit methods: euler: implicit Euler (first order: damps swinging motion, more the longer the step); bdf2: the second-order backward differentiation formula, still L-stable (stiff modes damped), each step solved like Euler's with 2/3 of the step from a blend of the last two states; starts with one Euler step, restarts after a split step; needs method newton or projected_newton; not with contacts yet"))
-            .param(ParamSpec::float("tolerance", 1e-6).gt(0.0).unit("m/s").doc("Newton stops when a further iteration would change velocities by less (method static: positions, in m)"))
+            .param(ParamSpec::float("tolerance", 1e-6).gt(0.0).unit("m/s").doc("Newton stops when a further iteration would change velocities by less, measured by that iteration or estimated from the last two full steps' contraction (method static: positions, in m, measured)"))
             .param(ParamSpec::int("max_iterations", 50).ge(1.0).le(10_000.0).doc("Newton iteration limit per step"))
             .param(ParamSpec::int("max_retries", 4).ge(0.0).le(16.0).doc("levels of step halving when a step fails"))
             .param(ParamSpec::int("contact_iterations", 200).ge(1.0).le(100_000.0).doc("ADMM iterations allowed per Newton iteration in a step with contacts (behavior.collision)")),

@@ -449,6 +449,8 @@ impl Integrator {
         // Newton steps below the tolerance in a row while ADMM did not converge.
         let mut stalled = 0;
         // The last full steps, to sum a geometric tail (`tail.rs`).
+        // The stopping test by the full steps' rate (`rate.rs`).
+        let mut rate = super::rate::RateStop::default();
         let mut tail = Tail::default();
         if self.tails {
             tail.reset(dofs);
@@ -677,6 +679,7 @@ impl Integrator {
             }
             let mut trial = x.clone();
             let mut alpha = stretch;
+            let corrections = stats.corrections;
             loop {
                 self.place(sys, &x, &delta, alpha, &mut trial);
                 let armijo = phi(self, &trial) <= e0 + 1e-4 * alpha * slope;
@@ -742,6 +745,18 @@ impl Integrator {
             }
             if step < settings.tolerance && admm_converged {
                 stats.converged = true;
+                break;
+            }
+            // Or the corrections still to come are estimated below it: the last two steps
+            // full (not extrapolated, cut or corrected) with the contact laws met (ADMM
+            // converged). Measured (ensembles of 8, Newton iterations a step, with the
+            // contact-free loop's rate stop as well): hair_on_head 9.98 → 8.70, hair_pile
+            // 9.59 → 7.72, cloth_drape 10.55 → 9.81, cloth_pile 10.28 → 8.88.
+            let full = alpha == 1.0 && admm_converged && stats.corrections == corrections;
+            if let Some(estimate) = rate.done(step, full, settings.tolerance) {
+                stats.converged = true;
+                stats.rate_stops += 1;
+                stats.estimate = Some(estimate);
                 break;
             }
             stalled = if step < settings.tolerance {
