@@ -118,7 +118,8 @@ pub struct FrameStats {
     /// Halvings of those extrapolations' trial lengths (towards the full step), summed.
     pub extrapolation_halvings: usize,
     /// Newton loops ended by their rate's estimate of the corrections still to come (see
-    /// `weft-solid`'s `integrator/rate.rs`), summed over steps.
+    /// `weft-solid`'s `integrator/rate.rs`), summed over steps and over the solves of a
+    /// contact step thrown away for a re-solve.
     pub rate_stops: usize,
     /// Wall time of the frame.
     pub seconds: f64,
@@ -266,11 +267,8 @@ impl SolidStepper {
                 stats.steps += 1;
                 stats.newton_iterations += s.iterations;
                 stats.max_newton_iterations = stats.max_newton_iterations.max(s.iterations);
-                stats.max_residual = stats.max_residual.max(if s.residuals.is_empty() {
-                    0.0
-                } else {
-                    s.final_residual()
-                });
+                // `f64::max` skips the NaN of a step without residuals (explicit).
+                stats.max_residual = stats.max_residual.max(s.final_residual());
                 stats.assembly_seconds += s.assembly_seconds;
                 stats.factor_seconds += s.factor_seconds;
                 stats.factorizations += s.factorizations;

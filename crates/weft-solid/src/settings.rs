@@ -35,7 +35,8 @@ pub struct Settings {
     /// is below this [m/s] (for [`Integrator::solve_static`]: ‖Δx‖∞ in metres): measured by
     /// that iteration's step, or estimated from the contraction of the last two full steps
     /// (at a ratio q < ½, the geometric tail r q/(1 − q) of the last step's r; time steps
-    /// only, `integrator/rate.rs`).
+    /// only: with [`Method::Newton`] its unshifted first Hessians' iterations, and in contact
+    /// steps the iterations whose ADMM converged; `integrator/rate.rs`).
     pub tolerance: f64,
     /// Newton iteration limit.
     pub max_iterations: usize,

@@ -476,7 +476,7 @@ pub(super) fn solid(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeE
     }
     ws.record(serde_json::json!({
         "frame": frame, "iteration": it.iteration, "newton_iterations": stats.iterations,
-        "residual": stats.residuals.last(), "omega": relaxation.omega,
+        "residual": stats.residuals.last().map(|_| stats.final_residual()), "omega": relaxation.omega,
         "seconds": t.elapsed().as_secs_f64(),
         "contacts": ws.contacts.is_some().then(|| super::types::contact_stats_json(&contact_stats)),
     }));
