@@ -1583,11 +1583,8 @@ impl Integrator {
                 && first == Some(false)
                 && !Self::slide_friction(sys);
             if matches!(mode, Mode::Dynamic { .. })
-                && let Some(estimate) = rate.done(res, full, settings.tolerance)
+                && rate.ends(&mut stats, res, full, settings.tolerance)
             {
-                stats.converged = true;
-                stats.rate_stops += 1;
-                stats.estimate = Some(estimate);
                 break;
             }
         }

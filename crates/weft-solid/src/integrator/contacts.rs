@@ -702,10 +702,10 @@ impl Integrator {
                 // solve puts them back where the law wants them, and the step that ends a
                 // Newton loop is below the tolerance (or, ended by the rate, a full step with
                 // no correction), so its correction is negligible. Holding them (as before)
-                // left the segments between two contacts uncorrected, and
-                // their full steps were halved: hair_on_head 13.3 → 7.7 iterations a step in
-                // the last exact-check round of each (what the statistics then counted),
-                // 11.2 → 5.8 s for the run.
+                // left the segments between two contacts uncorrected, and their full steps
+                // were halved: hair_on_head 13.3 → 7.7 iterations a step in the last
+                // exact-check round of each (what the statistics then counted), 11.2 → 5.8 s
+                // for the run.
                 if alpha == 1.0 && !self.correction.is_empty() {
                     stats.correction_sweeps += self.correction.apply(
                         &self.free_of,
@@ -753,14 +753,12 @@ impl Integrator {
             // converged). This loop's model is partly bounded (membranes) and can converge
             // linearly (`tail.rs`: ratios of 0.81–0.92), which the ratio's bound of ½
             // excludes; the distances the contact tests assert hold, and cloth_drape ends as
-            // near its run at a hundredth of the tolerance as before (3.6e-5 m, BENCHMARKS). Measured (ensembles of 8, Newton iterations a step, with the
-            // contact-free loop's rate stop as well): hair_on_head 9.98 → 8.70, hair_pile
-            // 9.59 → 7.72, cloth_drape 10.55 → 9.81, cloth_pile 10.28 → 8.88.
+            // near its run at a hundredth of the tolerance as before (3.6e-5 m, BENCHMARKS).
+            // Measured (ensembles of 8, Newton iterations a step, with the contact-free
+            // loop's rate stop as well): hair_on_head 9.98 → 8.70, hair_pile 9.59 → 7.72,
+            // cloth_drape 10.55 → 9.81, cloth_pile 10.28 → 8.88.
             let full = alpha == 1.0 && admm_converged && stats.corrections == corrections;
-            if let Some(estimate) = rate.done(step, full, settings.tolerance) {
-                stats.converged = true;
-                stats.rate_stops += 1;
-                stats.estimate = Some(estimate);
+            if rate.ends(&mut stats, step, full, settings.tolerance) {
                 break;
             }
             stalled = if step < settings.tolerance {
