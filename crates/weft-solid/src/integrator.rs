@@ -163,6 +163,19 @@ enum Mode {
     Static,
 }
 
+/// The preconditioner an integrator's Newton directions go through while its `pcg` is set:
+/// the one-ring's, or the single-precision one (`pcg_single`). A macro rather than a method,
+/// so that the caller can borrow H's other fields beside it.
+macro_rules! preconditioner {
+    ($s:expr) => {
+        match ($s.pcg, $s.pcg_single) {
+            (false, _) => None,
+            (true, false) => $s.one_ring.as_mut(),
+            (true, true) => $s.single.as_mut(),
+        }
+    };
+}
+
 /// A stepper for one system: owns the sparsity pattern, the symbolic factorization and every
 /// work buffer, so stepping allocates nothing per iteration.
 pub struct Integrator {
@@ -191,8 +204,15 @@ pub struct Integrator {
     /// without contacts is a contact-free step, and a rebuild for contacts' blocks starts a
     /// new integrator without it).
     one_ring: Option<one_ring::OneRing>,
-    /// Whether `one_ring` was built (or found not to pay) for this pattern.
+    /// Where H's factorization is large (`one_ring::SINGLE_MIN_FLOPS`): H's own pattern
+    /// factored in single precision, preconditioning CG as the one-ring's factor does, for
+    /// the steps in which that declines (bending that outweighs the inertia) or where there
+    /// is none.
+    single: Option<one_ring::OneRing>,
+    /// Whether `one_ring` and `single` were built (or found not to pay) for this pattern.
     one_ring_tried: bool,
+    /// Whether this step's preconditioned directions go through `single`, not `one_ring`.
+    pcg_single: bool,
     /// Whether the current Newton iteration's directions go through `one_ring`.
     pcg: bool,
     grad: Vec<f64>,
@@ -504,7 +524,9 @@ impl Integrator {
             upper_start,
             factor,
             one_ring: None,
+            single: None,
             one_ring_tried: false,
+            pcg_single: false,
             pcg: false,
             grad: vec![0.0; dofs],
             dir: vec![0.0; dofs],
@@ -874,9 +896,7 @@ impl Integrator {
     /// non-positive curvature (H is not positive definite). Should they not converge, the
     /// rest of the step factors H itself, starting with this direction.
     fn solve_direction(&mut self, stats: &mut StepStats) -> bool {
-        if self.pcg
-            && let Some(pre) = self.one_ring.as_mut()
-        {
+        if let Some(pre) = preconditioner!(self) {
             let t = Instant::now();
             let (outcome, its) = pre.solve(
                 &self.values,
@@ -1013,10 +1033,14 @@ impl Integrator {
     /// was positive definite, or `None` when H is to be factored instead (no preconditioner,
     /// or it declined: then the rest of the step factors H).
     fn factor_preconditioner(&mut self, certify: bool) -> Option<bool> {
-        let pre = self.one_ring.as_mut().filter(|_| self.pcg)?;
-        match pre.factor(&self.values, certify) {
+        let pre: Option<&mut one_ring::OneRing> = preconditioner!(self);
+        match pre?.factor(&self.values, certify) {
             one_ring::Factored::Positive => Some(true),
             one_ring::Factored::NotPositive => Some(false),
+            one_ring::Factored::Declined if !self.pcg_single && self.single.is_some() => {
+                self.pcg_single = true;
+                self.factor_preconditioner(certify)
+            }
             one_ring::Factored::Declined => {
                 self.pcg = false;
                 None
@@ -1316,7 +1340,35 @@ impl Integrator {
     fn threaded(&self) -> bool {
         self.factor.split.is_some()
             || self.one_ring.as_ref().is_some_and(|o| o.is_split())
+            || self.single.is_some()
             || matches!(self.parts, partition::Part::Split { .. })
+    }
+
+    /// Each free node's block neighbours in H's pattern (itself included, sorted).
+    fn vertex_graph(&self) -> Vec<Vec<u32>> {
+        (0..self.n_free)
+            .map(|v| {
+                (self.col_ptr[3 * v]..self.col_ptr[3 * v + 1])
+                    .step_by(3)
+                    .map(|k| (self.row_idx[k] / 3) as u32)
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// H's own pattern factored in single precision as CG's preconditioner
+    /// (`OneRing::single`), where H's factorization costs at least
+    /// [`one_ring::SINGLE_MIN_FLOPS`] and may be split (no rigid groups).
+    fn build_single(&self, sys: &SolidSystem) -> Result<Option<one_ring::OneRing>, StepError> {
+        if self.factor.flops() < one_ring::SINGLE_MIN_FLOPS
+            || !sys.rigid.is_empty()
+            || self.whole_only
+        {
+            return Ok(None);
+        }
+        let nbrs = self.vertex_graph();
+        let at = free_layout(sys, &self.free_of, self.groups.first);
+        one_ring::OneRing::single(&nbrs, &self.col_ptr, &self.row_idx, &at, self.max_bytes)
     }
 
     /// The one-ring preconditioner for this pattern (`one_ring.rs`), where it pays: its
@@ -1325,14 +1377,7 @@ impl Integrator {
     /// extra blocks; the wide elements' (shell bending's) other pairs are dropped.
     fn build_one_ring(&self, sys: &SolidSystem) -> Result<Option<one_ring::OneRing>, StepError> {
         let first = self.groups.first;
-        let nbrs: Vec<Vec<u32>> = (0..self.n_free)
-            .map(|v| {
-                (self.col_ptr[3 * v]..self.col_ptr[3 * v + 1])
-                    .step_by(3)
-                    .map(|k| (self.row_idx[k] / 3) as u32)
-                    .collect()
-            })
-            .collect();
+        let nbrs = self.vertex_graph();
         let mut keep: Vec<Vec<u32>> = (0..self.n_free as u32).map(|j| vec![j]).collect();
         for (v, l) in nbrs.iter().enumerate() {
             if v >= first {
@@ -1394,10 +1439,19 @@ impl Integrator {
             self.one_ring_tried = true;
             // Not paying, or too large for the memory limit: H's factor serves as before.
             self.one_ring = self.build_one_ring(sys).ok().flatten();
+            self.single = self.build_single(sys).ok().flatten();
         }
-        if let (Mode::Dynamic { h }, Some(pre)) = (mode, self.one_ring.as_mut()) {
-            pre.set_inertia(&self.free_of, &sys.mass, h);
+        if let Mode::Dynamic { h } = mode {
+            for pre in [self.one_ring.as_mut(), self.single.as_mut()]
+                .into_iter()
+                .flatten()
+            {
+                pre.set_inertia(&self.free_of, &sys.mass, h);
+            }
         }
+        // The one-ring's factor first (the cheaper one); the single-precision one where
+        // there is no one-ring, or from where it declines.
+        self.pcg_single = self.one_ring.is_none();
         let out = self.newton(sys, x, x0, mode, settings);
         self.pcg = false;
         out

@@ -42,6 +42,36 @@ const SPLIT_GAIN: f64 = 0.75;
 /// Nested dissection replaces minimum degree only with at most this fraction of its flops.
 pub(super) const DISSECTION_GAIN: f64 = 0.8;
 
+/// Scaled entries (the diagonal is one) below this are left out of the single-precision
+/// factor: the assembly leaves entries of 1e-108 and less where terms cancel, and in f32 they
+/// and the fill they make are subnormal, whose arithmetic runs 5–10× slower.
+const SINGLE_FLUSH: f64 = 1e-30;
+
+/// Runs `f` with the SSE unit flushing subnormal results and inputs to zero (MXCSR's FTZ and
+/// DAZ), as the single-precision factor's entries decay along a separator's fill and would
+/// otherwise turn subnormal: measured at 128² (one factorization of each half, min of 3),
+/// without the flags f32 took 0.9–1.4× f64's time, with them 0.6–0.8×. The flags are the
+/// calling thread's and are restored after; f64 arithmetic elsewhere is untouched.
+#[allow(deprecated)]
+pub(super) fn flushing<R>(f: impl FnOnce() -> R) -> R {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_getcsr, _mm_setcsr};
+        // SAFETY: reading and writing MXCSR's rounding-independent flush bits (FTZ 0x8000,
+        // DAZ 0x0040) changes how subnormals are produced, nothing Rust relies on; the old
+        // value is restored before returning.
+        let old = unsafe { _mm_getcsr() };
+        unsafe { _mm_setcsr(old | 0x8040) };
+        let r = f();
+        unsafe { _mm_setcsr(old) };
+        r
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        f()
+    }
+}
+
 /// A fill-reducing ordering applied: the permuted lower triangle's pattern and its symbolic
 /// Cholesky factorization, and what a numeric factorization then costs.
 pub(super) struct Analysis {
@@ -56,6 +86,21 @@ pub(super) struct Analysis {
 }
 
 impl Analysis {
+    /// The permuted lower triangle's pattern, as faer's view.
+    fn lower_pattern(&self) -> SymbolicSparseColMatRef<'_, usize> {
+        let dofs = self.fwd.len();
+        // SAFETY: `new` checked this pattern with `new_checked`; it never changes after.
+        unsafe {
+            SymbolicSparseColMatRef::new_unchecked(
+                dofs,
+                dofs,
+                &self.lower_ptr,
+                None,
+                &self.lower_row,
+            )
+        }
+    }
+
     /// One numeric Cholesky factorization of the permuted lower triangle gathered from
     /// `values` (the whole pattern's) into `lower_values`, its factor into `l_values`.
     pub(super) fn factor(
@@ -68,21 +113,20 @@ impl Analysis {
         for (v, &k) in lower_values.iter_mut().zip(&self.lower_src) {
             *v = values[k];
         }
-        let dofs = self.fwd.len();
-        // SAFETY: `new` checked this pattern with `new_checked`; it never changes after.
-        let sym = unsafe {
-            SymbolicSparseColMatRef::new_unchecked(
-                dofs,
-                dofs,
-                &self.lower_ptr,
-                None,
-                &self.lower_row,
-            )
-        };
+        self.numeric(lower_values, l_values, mem)
+    }
+
+    /// The numeric factorization of the gathered lower triangle, in f64 or f32.
+    fn numeric<T: faer::traits::ComplexField>(
+        &self,
+        lower_values: &[T],
+        l_values: &mut [T],
+        mem: &mut MemBuffer,
+    ) -> Result<(), faer::linalg::solvers::LltError> {
         self.symbolic
             .factorize_numeric_llt(
                 l_values,
-                SparseColMatRef::new(sym, lower_values),
+                SparseColMatRef::new(self.lower_pattern(), lower_values),
                 Side::Lower,
                 Default::default(),
                 Par::Seq,
@@ -90,6 +134,32 @@ impl Analysis {
                 Default::default(),
             )
             .map(|_| ())
+    }
+
+    /// [`Self::factor`] in single precision, of the matrix scaled to a unit diagonal
+    /// (`scale[d]` = 1/√A_dd for DOF d): entries below [`SINGLE_FLUSH`] are dropped, and the
+    /// factorization runs with subnormals flushed to zero (see [`flushing`]).
+    pub(super) fn factor_single(
+        &self,
+        values: &[f64],
+        scale: &[f64],
+        lower_values: &mut [f32],
+        l_values: &mut [f32],
+        mem: &mut MemBuffer,
+    ) -> Result<(), faer::linalg::solvers::LltError> {
+        let dofs = self.fwd.len();
+        for j in 0..dofs {
+            let sj = scale[self.fwd[j]];
+            for k in self.lower_ptr[j]..self.lower_ptr[j + 1] {
+                let v = values[self.lower_src[k]] * sj * scale[self.fwd[self.lower_row[k]]];
+                lower_values[k] = if v.abs() < SINGLE_FLUSH {
+                    0.0
+                } else {
+                    v as f32
+                };
+            }
+        }
+        flushing(|| self.numeric(lower_values, l_values, mem))
     }
 
     /// The analysis of the pattern (`col_ptr`, `row_idx`: both triangles, 3×3 blocks) with
@@ -203,6 +273,18 @@ pub(super) struct Factor {
     pub(super) split: Option<split::Split>,
     /// Where set, the factor is nearly dense and small: factored as a dense matrix.
     dense: Option<Dense>,
+    /// Where set, the split's halves are factored in single precision (a preconditioner's
+    /// factor, [`Self::into_single`]).
+    single: Option<Single>,
+}
+
+/// A single-precision factor's diagonal scaling: the matrix factored is D A D with
+/// D = diag(1/√A_dd), so its diagonal is one and f32's range holds its entries.
+struct Single {
+    /// Per DOF: its diagonal entry's index in `values`.
+    diag: Vec<usize>,
+    /// Per DOF: 1/√A_dd at the last factorization.
+    scale: Vec<f64>,
 }
 
 /// Systems of at most [`DENSE_MAX`] unknowns whose dense factorization (n³/3 flops) costs at
@@ -342,7 +424,34 @@ impl Factor {
             analysis,
             split,
             dense,
+            single: None,
         })
+    }
+
+    /// This factor made approximate: its split's halves factored in single precision, of
+    /// the matrix scaled to a unit diagonal, so a solve with it is A⁻¹'s to about f32's
+    /// precision times A's conditioning — a preconditioner for conjugate gradients on A in
+    /// f64 (`one_ring.rs`), not an answer. f32's supernodal factorization ran in 0.51–0.63
+    /// of f64's time at 317² (100k vertices; each half, min of 3) and 0.6–0.9 at 128².
+    /// `None` where the factor is not split or its halves are hair-like (the own narrow
+    /// solve is f64 only). `col_ptr`/`row_idx`: the pattern it was built for.
+    pub(super) fn into_single(mut self, col_ptr: &[usize], row_idx: &[usize]) -> Option<Self> {
+        if !self.split.as_mut()?.make_single() {
+            return None;
+        }
+        let dofs = col_ptr.len() - 1;
+        let diag = (0..dofs)
+            .map(|c| {
+                (col_ptr[c]..col_ptr[c + 1])
+                    .find(|&k| row_idx[k] == c)
+                    .map(|k| value_index(col_ptr, k, c))
+            })
+            .collect::<Option<Vec<usize>>>()?;
+        self.single = Some(Single {
+            diag,
+            scale: vec![1.0; dofs],
+        });
+        Some(self)
     }
 
     /// Floating-point operations of one numeric factorization (the split's where split).
@@ -355,8 +464,22 @@ impl Factor {
     /// One numeric Cholesky factorization of `values`: into the factor, or the split's
     /// halves. An error means a non-positive pivot: the matrix is not positive definite.
     pub(super) fn factor(&mut self, values: &[f64]) -> Result<(), faer::linalg::solvers::LltError> {
+        let scale = match self.single.as_mut() {
+            Some(single) => {
+                for (s, &k) in single.scale.iter_mut().zip(&single.diag) {
+                    let d = values[k];
+                    // Not a positive diagonal (or not finite): not positive definite.
+                    if !(d > 0.0 && d.is_finite()) {
+                        return Err(faer::linalg::solvers::LltError::NonPositivePivot { index: 0 });
+                    }
+                    *s = 1.0 / d.sqrt();
+                }
+                Some(single.scale.as_slice())
+            }
+            None => None,
+        };
         if let Some(sp) = self.split.as_mut() {
-            return if sp.factor(values) {
+            return if sp.factor(values, scale) {
                 Ok(())
             } else {
                 Err(faer::linalg::solvers::LltError::NonPositivePivot { index: 0 })
@@ -389,7 +512,15 @@ impl Factor {
     /// Solves with the last factor in place (`b` ← A⁻¹ b).
     pub(super) fn solve_in_place(&mut self, b: &mut [f64]) {
         if let Some(sp) = self.split.as_mut() {
-            sp.solve_in_place(b);
+            match self.single.as_ref() {
+                // (D A D)⁻¹ = D⁻¹ A⁻¹ D⁻¹, so A⁻¹ b = D (D A D)⁻¹ D b.
+                Some(single) => {
+                    b.iter_mut().zip(&single.scale).for_each(|(v, s)| *v *= s);
+                    sp.solve_in_place(b);
+                    b.iter_mut().zip(&single.scale).for_each(|(v, s)| *v *= s);
+                }
+                None => sp.solve_in_place(b),
+            }
             return;
         }
         let dofs = self.analysis.fwd.len();

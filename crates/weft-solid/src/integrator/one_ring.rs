@@ -59,6 +59,18 @@ pub(super) const ONE_RING_GAIN: f64 = 0.4;
 /// directions, at tolerances 1e-4 and 1e-8, ends 1.1e-5 m apart there.
 const RELATIVE: f64 = 1e-3;
 
+/// From this many flops of H's (split) factorization, a preconditioner of H's own pattern in
+/// single precision is built too (`OneRing::single`), for the steps where the one-ring's
+/// declines or where there is none. `weft bench solid`'s hanging cloth as a graph
+/// (`bench/sheet_graph.py`, one step a frame: the one-ring's declines in every step), 6
+/// frames, f64 factor → single-precision preconditioner, solver seconds: 32² 0.41–0.47 →
+/// 0.46–0.47 (no gain: left out); 40² 0.78–0.88 → 0.66–0.81 (same 46 Newton iterations); 48²
+/// 1.76–1.85 → 1.34–1.47; 64² 3.67 → 3.13; 96² 9.2 → 6.8; 128² 21.8 → 15.5–19.5 (with 1.0–1.2
+/// CG iterations a direction, and 47–51 Newton iterations where the f64 path took 48–53);
+/// 317² (100k vertices), 2 frames, 47.8 → 41.8 s (factorizations 2.94 → 2.13 s each, 1.8 CG
+/// iterations a direction).
+pub(super) const SINGLE_MIN_FLOPS: f64 = 1e8;
+
 /// Products by H over fewer nodes run on the calling thread (a fork–join costs more).
 const PARALLEL_PRODUCT: usize = 8192;
 
@@ -173,20 +185,40 @@ impl OneRing {
             }
             debug_assert_eq!(k, keep_v.len(), "keep is a subset of nbrs");
         }
-        Ok(Some(OneRing {
-            values: vec![0.0; m_row.len()],
+        Ok(Some(Self::with(
+            factor,
+            vec![0.0; m_row.len()],
             src,
             dropped,
             diag,
-            lump: vec![0.0; nbrs.len()],
-            inertia: vec![0.0; nbrs.len()],
+            nbrs.len(),
+        )))
+    }
+
+    /// A preconditioner of `nodes` nodes around its factor, M's values and their sources.
+    fn with(
+        factor: Factor,
+        values: Vec<f64>,
+        src: Vec<usize>,
+        dropped: Vec<(usize, u32, u32)>,
+        diag: Vec<usize>,
+        nodes: usize,
+    ) -> Self {
+        let dofs = 3 * nodes;
+        OneRing {
+            values,
+            src,
+            dropped,
+            diag,
+            lump: vec![0.0; nodes],
+            inertia: vec![0.0; nodes],
             ratio: 0.0,
             factor,
             r: vec![0.0; dofs],
             z: vec![0.0; dofs],
             p: vec![0.0; dofs],
             q: vec![0.0; dofs],
-        }))
+        }
     }
 
     /// Sets each node's inertia m/h² for this step's factorizations (`free_of`: each
@@ -200,9 +232,43 @@ impl OneRing {
         }
     }
 
+    /// H's own pattern as M, factored in single precision (`Factor::into_single`): nothing
+    /// is dropped, so M₊ = M₋ = H to f32's precision and CG converges in a few iterations;
+    /// the factorization is what is cheaper (f32's supernodal kernels). `None` where H's
+    /// factor is not split (see `Factor::into_single`).
+    pub(super) fn single(
+        nbrs: &[Vec<u32>],
+        col_ptr: &[usize],
+        row_idx: &[usize],
+        at: &[Vector3<f64>],
+        max_bytes: Option<u64>,
+    ) -> Result<Option<Self>, StepError> {
+        let Some(factor) =
+            Factor::new(nbrs, col_ptr, row_idx, at, true, max_bytes)?.into_single(col_ptr, row_idx)
+        else {
+            return Ok(None);
+        };
+        Ok(Some(Self::with(
+            factor,
+            Vec::new(),
+            Vec::new(),
+            Vec::new(),
+            Vec::new(),
+            nbrs.len(),
+        )))
+    }
+
     /// Gathers M from H's values `h` and factors it: M₊ (the lump added: M₊ ⪰ H), or where
     /// `certify`, M₋ (the lump subtracted: M₋ ⪯ H), whose success proves H positive definite.
     pub(super) fn factor(&mut self, h: &[f64], certify: bool) -> Factored {
+        if self.src.is_empty() {
+            // H itself, in single precision.
+            return if self.factor.factor(h).is_ok() {
+                Factored::Positive
+            } else {
+                Factored::NotPositive
+            };
+        }
         self.lump.fill(0.0);
         for &(base, a, b) in &self.dropped {
             let f = h[base..base + 9].iter().map(|v| v * v).sum::<f64>().sqrt();
@@ -487,5 +553,73 @@ mod tests {
         assert!(cg > 0, "no CG iterations");
         let far = crate::integrator::order::tests::farthest(&a, &b);
         assert!(far < 1e-6 * h * steps as f64, "{far:e} m apart");
+    }
+}
+
+#[cfg(test)]
+mod single_tests {
+    use super::*;
+    use crate::integrator::split::tests::{grid, spd};
+    use crate::integrator::value_index;
+
+    /// H's own pattern factored in single precision (a 20 × 20 two-ring grid, split): a
+    /// solve with the factor alone is H⁻¹'s to about f32's precision, CG with it reaches the
+    /// f64 solution in a few iterations, and a matrix with a negative diagonal entry is
+    /// refused as H's own factorization refuses it.
+    #[test]
+    fn the_single_precision_factor_preconditions_h_itself() {
+        let k = 20;
+        let (nbrs, at, col_ptr, row_idx) = grid(k);
+        let mut values = spd(&col_ptr, &row_idx);
+        // Scaled rows (1e-3 … 1e3 on the diagonal, as masses and stiffnesses differ): the
+        // factor scales the matrix to a unit diagonal before rounding it to f32.
+        let s: Vec<f64> = (0..3 * k * k)
+            .map(|d| 10f64.powi((d % 7) as i32 - 3))
+            .collect();
+        for c in 0..3 * k * k {
+            for p in col_ptr[c]..col_ptr[c + 1] {
+                values[value_index(&col_ptr, p, c)] *= (s[c] * s[row_idx[p]]).sqrt();
+            }
+        }
+        let mut pre = OneRing::single(&nbrs, &col_ptr, &row_idx, &at, None)
+            .unwrap()
+            .expect("a 20 × 20 grid splits");
+        assert_eq!(pre.factor(&values, true), Factored::Positive);
+        let grad: Vec<f64> = (0..3 * k * k).map(|i| (i as f64 * 0.37).sin()).collect();
+        // The exact solution, from H's f64 factor.
+        let mut exact = Factor::new(&nbrs, &col_ptr, &row_idx, &at, true, None).unwrap();
+        exact.factor(&values).unwrap();
+        let mut want: Vec<f64> = grad.iter().map(|g| -g).collect();
+        exact.solve_in_place(&mut want);
+        let err = |x: &[f64]| {
+            let num = x
+                .iter()
+                .zip(&want)
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum::<f64>();
+            (num / want.iter().map(|b| b * b).sum::<f64>()).sqrt()
+        };
+        // The factor alone: f32's unit roundoff (6e-8) times the scaled system's condition
+        // number (diagonally dominant: a few) and the factor's growth, well below 1e-5.
+        let mut z: Vec<f64> = grad.iter().map(|g| -g).collect();
+        pre.factor.solve_in_place(&mut z);
+        let e0 = err(&z);
+        assert!(e0 > 0.0 && e0 < 1e-5, "{e0:e}");
+        let mut dir = vec![0.0; 3 * k * k];
+        let (outcome, its) = pre.solve(&values, &col_ptr, &row_idx, &grad, &mut dir);
+        assert_eq!(outcome, Outcome::Converged);
+        // The first iteration meets RELATIVE (1e-3) already: the direction is the factor's,
+        // corrected along one Krylov vector, to its precision or better.
+        assert!(its <= 2, "{its} iterations");
+        assert!(err(&dir) <= 1.01 * e0, "{:e} {e0:e}", err(&dir));
+        // A negative diagonal entry: not positive definite.
+        let mut bad = values.clone();
+        let v = 3 * 5 * k + 3;
+        let d = (col_ptr[v]..col_ptr[v + 1])
+            .find(|&j| row_idx[j] == v)
+            .map(|j| value_index(&col_ptr, j, v))
+            .unwrap();
+        bad[d] = -5.0;
+        assert_eq!(pre.factor(&bad, true), Factored::NotPositive);
     }
 }

@@ -55,6 +55,15 @@ struct Half {
     narrow_tmp: Option<Vec<f64>>,
     /// The trailing block L of the factor (dense, column-major, lower).
     tail: Vec<f64>,
+    /// Where this half is factored in single precision ([`Split::make_single`]): its lower
+    /// triangle, factor and solve vector in f32 (`lower_values` and `l_values` then empty).
+    single: Option<HalfSingle>,
+}
+
+struct HalfSingle {
+    lower_values: Vec<f32>,
+    l_values: Vec<f32>,
+    x: Vec<f32>,
 }
 
 impl Half {
@@ -86,57 +95,48 @@ impl Half {
             narrow_tmp,
             tail: vec![0.0; sep * sep],
             analysis,
+            single: None,
         })
     }
 
     /// Factors this half's bordered matrix from `values`, and copies the factor's trailing
     /// block into `tail`: whether it was positive definite.
-    fn factor(&mut self, values: &[f64]) -> bool {
-        let ok = self
-            .analysis
-            .factor(
-                values,
-                &mut self.lower_values,
-                &mut self.l_values,
-                &mut self.mem,
-            )
-            .is_ok();
-        if ok {
-            self.copy_tail();
-        }
-        ok
-    }
-
-    /// `tail` ← the factor's rows and columns from `own` on.
-    fn copy_tail(&mut self) {
-        let n = self.analysis.fwd.len() - self.own;
-        let own = self.own;
-        let mut tail = std::mem::take(&mut self.tail);
-        tail.iter_mut().for_each(|v| *v = 0.0);
-        let sn = supernodal(&self.analysis);
-        let (begin, end) = (sn.supernode_begin(), sn.supernode_end());
-        let (val_ptr, row_ptr, rows) =
-            (sn.col_ptr_for_val(), sn.col_ptr_for_row_idx(), sn.row_idx());
-        for s in 0..begin.len() {
-            if end[s] <= own {
-                continue;
+    /// `scale`: where the half is single precision, the whole system's diagonal scaling
+    /// (the factor is then of D M D, see `Factor::into_single`).
+    fn factor(&mut self, values: &[f64], scale: Option<&[f64]>) -> bool {
+        match (self.single.as_mut(), scale) {
+            (Some(single), Some(scale)) => {
+                let ok = self
+                    .analysis
+                    .factor_single(
+                        values,
+                        scale,
+                        &mut single.lower_values,
+                        &mut single.l_values,
+                        &mut self.mem,
+                    )
+                    .is_ok();
+                if ok {
+                    copy_tail(&self.analysis, self.own, &single.l_values, &mut self.tail);
+                }
+                ok
             }
-            let w = end[s] - begin[s];
-            let vals = &self.l_values[val_ptr[s]..val_ptr[s + 1]];
-            let lda = vals.len() / w;
-            let pattern = &rows[row_ptr[s]..row_ptr[s] + (lda - w)];
-            for c in begin[s].max(own)..end[s] {
-                let col = &vals[(c - begin[s]) * lda..(c - begin[s] + 1) * lda];
-                let j = c - own;
-                for r in c..end[s] {
-                    tail[(r - own) + j * n] = col[r - begin[s]];
+            _ => {
+                let ok = self
+                    .analysis
+                    .factor(
+                        values,
+                        &mut self.lower_values,
+                        &mut self.l_values,
+                        &mut self.mem,
+                    )
+                    .is_ok();
+                if ok {
+                    copy_tail(&self.analysis, self.own, &self.l_values, &mut self.tail);
                 }
-                for (k, &r) in pattern.iter().enumerate() {
-                    tail[(r - own) + j * n] = col[w + k];
-                }
+                ok
             }
         }
-        self.tail = tail;
     }
 
     /// x ← F⁻¹ [b_own; 0]: this half's own DOFs of `b`, the separator's zero (`x`'s tail is
@@ -164,6 +164,25 @@ impl Half {
     fn triangular_solve(&mut self, transposed: bool) {
         let sn = supernodal(&self.analysis);
         let n = self.x.len();
+        if let Some(single) = self.single.as_mut() {
+            for (y, &v) in single.x.iter_mut().zip(&self.x) {
+                *y = v as f32;
+            }
+            let llt = SupernodalLltRef::new(sn, &single.l_values);
+            let x = MatMut::from_column_major_slice_mut(&mut single.x, n, 1);
+            let stack = MemStack::new(&mut self.mem);
+            super::factor::flushing(|| {
+                if transposed {
+                    llt.l_transpose_solve_with_conj(Conj::No, x, Par::Seq, stack);
+                } else {
+                    llt.l_solve_with_conj(Conj::No, x, Par::Seq, stack);
+                }
+            });
+            for (v, &y) in self.x.iter_mut().zip(&single.x) {
+                *v = y.into();
+            }
+            return;
+        }
         match (self.narrow_tmp.as_mut(), transposed) {
             (Some(tmp), false) => solve::forward(sn, &self.l_values, &mut self.x, tmp),
             (Some(tmp), true) => solve::backward(sn, &self.l_values, &mut self.x, tmp),
@@ -176,6 +195,39 @@ impl Half {
                 } else {
                     llt.l_solve_with_conj(Conj::No, x, Par::Seq, stack);
                 }
+            }
+        }
+    }
+}
+
+/// `tail` ← the rows and columns from `own` on of a half's factor `l_values`.
+fn copy_tail<T: Copy + Into<f64>>(
+    analysis: &Analysis,
+    own: usize,
+    l_values: &[T],
+    tail: &mut [f64],
+) {
+    let n = analysis.fwd.len() - own;
+    tail.iter_mut().for_each(|v| *v = 0.0);
+    let sn = supernodal(analysis);
+    let (begin, end) = (sn.supernode_begin(), sn.supernode_end());
+    let (val_ptr, row_ptr, rows) = (sn.col_ptr_for_val(), sn.col_ptr_for_row_idx(), sn.row_idx());
+    for s in 0..begin.len() {
+        if end[s] <= own {
+            continue;
+        }
+        let w = end[s] - begin[s];
+        let vals = &l_values[val_ptr[s]..val_ptr[s + 1]];
+        let lda = vals.len() / w;
+        let pattern = &rows[row_ptr[s]..row_ptr[s] + (lda - w)];
+        for c in begin[s].max(own)..end[s] {
+            let col = &vals[(c - begin[s]) * lda..(c - begin[s] + 1) * lda];
+            let j = c - own;
+            for r in c..end[s] {
+                tail[(r - own) + j * n] = col[r - begin[s]].into();
+            }
+            for (k, &r) in pattern.iter().enumerate() {
+                tail[(r - own) + j * n] = col[w + k].into();
             }
         }
     }
@@ -304,10 +356,30 @@ impl Split {
         }))
     }
 
+    /// Makes both halves single precision (`Factor::into_single`): false, and nothing
+    /// changed, where a half is hair-like (its own narrow solve is f64 only).
+    pub(super) fn make_single(&mut self) -> bool {
+        if self.halves.iter().any(|h| h.narrow_tmp.is_some()) {
+            return false;
+        }
+        for h in &mut self.halves {
+            h.single = Some(HalfSingle {
+                lower_values: vec![0.0; h.lower_values.len()],
+                l_values: vec![0.0; h.l_values.len()],
+                x: vec![0.0; h.x.len()],
+            });
+            h.lower_values = Vec::new();
+            h.l_values = Vec::new();
+        }
+        true
+    }
+
     /// Factors `values` (the whole pattern's): whether the matrix is positive definite.
-    pub(super) fn factor(&mut self, values: &[f64]) -> bool {
+    /// `scale`: for single-precision halves, the diagonal scaling D of the matrix factored,
+    /// D A D (`Factor::into_single`).
+    pub(super) fn factor(&mut self, values: &[f64], scale: Option<&[f64]>) -> bool {
         let [a, b] = &mut self.halves;
-        let (ok_a, ok_b) = rayon::join(|| a.factor(values), || b.factor(values));
+        let (ok_a, ok_b) = rayon::join(|| a.factor(values, scale), || b.factor(values, scale));
         if !(ok_a && ok_b) {
             return false;
         }
@@ -330,8 +402,17 @@ impl Split {
                 Par::Seq,
             );
         }
-        for &(i, j, k) in &self.kss {
-            s[(i, j)] -= values[k];
+        match scale {
+            Some(d) => {
+                for &(i, j, k) in &self.kss {
+                    s[(i, j)] -= values[k] * d[self.sep[i]] * d[self.sep[j]];
+                }
+            }
+            None => {
+                for &(i, j, k) in &self.kss {
+                    s[(i, j)] -= values[k];
+                }
+            }
         }
         cholesky_in_place(
             s,
@@ -483,7 +564,7 @@ pub(super) mod tests {
             // The separator: two grid lines (the two-ring), 40 vertices.
             assert_eq!(sp.sep.len(), 3 * 2 * k);
             let values = spd(&col_ptr, &row_idx);
-            assert!(sp.factor(&values));
+            assert!(sp.factor(&values, None));
             let b: Vec<f64> = (0..3 * k * k)
                 .map(|i| ((i * 37) % 11) as f64 - 5.0)
                 .collect();
@@ -503,7 +584,7 @@ pub(super) mod tests {
                     .map(|j| value_index(&col_ptr, j, v))
                     .unwrap();
                 bad[diag] = -5.0;
-                assert!(!sp.factor(&bad), "DOF {v}");
+                assert!(!sp.factor(&bad, None), "DOF {v}");
             }
         }
     }
