@@ -64,6 +64,10 @@ struct HalfSingle {
     lower_values: Vec<f32>,
     l_values: Vec<f32>,
     x: Vec<f32>,
+    /// L Lᵀ of this half's trailing block (its lower triangle), computed as soon as the half
+    /// is factored, concurrently with the other half's: the separator's products were
+    /// 0.19–0.31 s of a 1.5–2.2 s factorization at 317², run after both halves.
+    gram: Vec<f64>,
 }
 
 impl Half {
@@ -118,6 +122,8 @@ impl Half {
                     .is_ok();
                 if ok {
                     copy_tail(&self.analysis, self.own, &single.l_values, &mut self.tail);
+                    let m = self.analysis.fwd.len() - self.own;
+                    lower_gram(&self.tail, m, &mut single.gram, Accum::Replace);
                 }
                 ok
             }
@@ -367,6 +373,7 @@ impl Split {
                 lower_values: vec![0.0; h.lower_values.len()],
                 l_values: vec![0.0; h.l_values.len()],
                 x: vec![0.0; h.x.len()],
+                gram: vec![0.0; h.tail.len()],
             });
             h.lower_values = Vec::new();
             h.l_values = Vec::new();
@@ -384,24 +391,22 @@ impl Split {
             return false;
         }
         let m = self.sep.len();
-        // S̃ = L_A L_Aᵀ + L_B L_Bᵀ − K_SS (full products; only the lower half is read).
-        let mut s = MatMut::from_column_major_slice_mut(&mut self.schur, m, m);
-        let la = MatRef::from_column_major_slice(&self.halves[0].tail, m, m);
-        let lb = MatRef::from_column_major_slice(&self.halves[1].tail, m, m);
-        use faer::linalg::matmul::triangular::{BlockStructure, matmul};
-        for (l, acc) in [(la, Accum::Replace), (lb, Accum::Add)] {
-            matmul(
-                s.rb_mut(),
-                BlockStructure::TriangularLower,
-                acc,
-                l,
-                BlockStructure::TriangularLower,
-                l.transpose(),
-                BlockStructure::TriangularUpper,
-                1.0,
-                Par::Seq,
-            );
+        // S̃ = L_A L_Aᵀ + L_B L_Bᵀ − K_SS (only the lower half is read).
+        match (&self.halves[0].single, &self.halves[1].single) {
+            (Some(a), Some(b)) => {
+                for j in 0..m {
+                    for i in j..m {
+                        let k = i + j * m;
+                        self.schur[k] = a.gram[k] + b.gram[k];
+                    }
+                }
+            }
+            _ => {
+                lower_gram(&self.halves[0].tail, m, &mut self.schur, Accum::Replace);
+                lower_gram(&self.halves[1].tail, m, &mut self.schur, Accum::Add);
+            }
         }
+        let mut s = MatMut::from_column_major_slice_mut(&mut self.schur, m, m);
         match scale {
             Some(d) => {
                 for &(i, j, k) in &self.kss {
@@ -463,6 +468,24 @@ impl Split {
             b[d] = x;
         }
     }
+}
+
+/// `out` ← (or +=, by `acc`) L Lᵀ's lower triangle, for a dense lower-triangular L
+/// (column-major, m × m; only its lower triangle is read).
+fn lower_gram(l: &[f64], m: usize, out: &mut [f64], acc: Accum) {
+    use faer::linalg::matmul::triangular::{BlockStructure, matmul};
+    let l = MatRef::from_column_major_slice(l, m, m);
+    matmul(
+        MatMut::from_column_major_slice_mut(out, m, m),
+        BlockStructure::TriangularLower,
+        acc,
+        l,
+        BlockStructure::TriangularLower,
+        l.transpose(),
+        BlockStructure::TriangularUpper,
+        1.0,
+        Par::Seq,
+    );
 }
 
 /// x ← (L Lᵀ)⁻¹ x for a dense lower-triangular L (column-major, m × m; only its lower
