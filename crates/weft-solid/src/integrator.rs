@@ -213,7 +213,8 @@ pub struct Integrator {
     one_ring_tried: bool,
     /// Whether this step's preconditioned directions go through `single`, not `one_ring`.
     pcg_single: bool,
-    /// Whether the current Newton iteration's directions go through `one_ring`.
+    /// Whether the current Newton iteration's directions go through a preconditioner
+    /// (`one_ring`, or `single` where `pcg_single` is set).
     pcg: bool,
     grad: Vec<f64>,
     dir: Vec<f64>,
