@@ -1367,9 +1367,7 @@ impl Integrator {
         {
             return Ok(None);
         }
-        let nbrs = self.vertex_graph();
-        let at = free_layout(sys, &self.free_of, self.groups.first);
-        one_ring::OneRing::single(&nbrs, &self.col_ptr, &self.row_idx, &at, self.max_bytes)
+        one_ring::OneRing::single(&self.factor, &self.col_ptr, &self.row_idx, self.max_bytes)
     }
 
     /// The one-ring preconditioner for this pattern (`one_ring.rs`), where it pays: its

@@ -9,7 +9,7 @@
 //! any count; at 128² it was also slower (31 → 44 s for two frames' factorizations). Threads
 //! go to assembly and to the split's two halves.
 
-use super::{order, solve, split, value_index};
+use super::{block_entry, order, solve, split, value_index};
 use crate::settings::StepError;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::SupernodalThreshold;
@@ -20,6 +20,7 @@ use faer::sparse::linalg::cholesky::{
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 use nalgebra::Vector3;
+use std::sync::Arc;
 
 /// Factors cheaper than this keep minimum degree without trying nested dissection: there the
 /// flop count does not predict the time (dissection's leaves make many small supernodes),
@@ -176,35 +177,46 @@ impl Analysis {
             .iter()
             .flat_map(|&v| [3 * v, 3 * v + 1, 3 * v + 2])
             .collect();
-        let mut inv = vec![usize::MAX; col_ptr.len() - 1];
-        for (i, &d) in fwd.iter().enumerate() {
-            inv[d] = i;
+        // Per vertex, its place in `order`.
+        let mut inv = vec![usize::MAX; (col_ptr.len() - 1) / 3];
+        for (i, &v) in order.iter().enumerate() {
+            inv[v] = i;
         }
         // The lower triangle of the permuted matrix P A Pᵀ, (P A Pᵀ)ᵢⱼ = A(fwd i, fwd j), as a
         // pattern of its own with, per entry, where its value sits in `values`: each
         // factorization gathers it in one pass (faer permuting A itself at every
-        // factorization was 10 % of the hanging cloth's time).
+        // factorization was 10 % of the hanging cloth's time). Built a vertex (three
+        // columns with the same block rows) at a time, its blocks sorted once: entry by entry
+        // this took 0.45 s of a 0.9 s analysis at 317².
         let (mut lower_ptr, mut lower_row, mut lower_src) = (
             Vec::with_capacity(dofs + 1),
             Vec::with_capacity(row_idx.len() / 2 + dofs),
             Vec::with_capacity(row_idx.len() / 2 + dofs),
         );
         lower_ptr.push(0);
-        let mut column: Vec<(usize, usize)> = Vec::new();
-        for (j, &oc) in fwd.iter().enumerate() {
-            column.clear();
-            for k in col_ptr[oc]..col_ptr[oc + 1] {
-                let r = inv[row_idx[k]];
-                if r != usize::MAX && r >= j {
-                    column.push((r, value_index(col_ptr, k, oc)));
+        // (place of the row's vertex, block slot) of the blocks on or below the diagonal.
+        let mut blocks: Vec<(usize, usize)> = Vec::new();
+        for (j, &v) in order.iter().enumerate() {
+            blocks.clear();
+            let rows = &row_idx[col_ptr[3 * v]..col_ptr[3 * v + 1]];
+            for (s, &r) in rows.iter().step_by(3).enumerate() {
+                let i = inv[r / 3];
+                if i != usize::MAX && i >= j {
+                    blocks.push((i, s));
                 }
             }
-            column.sort_unstable();
-            for &(r, k) in &column {
-                lower_row.push(r);
-                lower_src.push(k);
+            blocks.sort_unstable();
+            for cc in 0..3 {
+                for &(i, s) in &blocks {
+                    // The diagonal block's lower triangle only.
+                    let first = if i == j { cc } else { 0 };
+                    for rr in first..3 {
+                        lower_row.push(3 * i + rr);
+                        lower_src.push(block_entry(col_ptr, v, s, rr, cc));
+                    }
+                }
+                lower_ptr.push(lower_row.len());
             }
-            lower_ptr.push(lower_row.len());
         }
         // faer's symbolic analysis reads the upper triangle whatever the side when given no
         // ordering (the numeric factorization then takes the lower one): its transpose.
@@ -257,8 +269,9 @@ pub(super) struct Factor {
     /// The fill-reducing permutation (DOF `analysis.fwd[i]` is unknown i of the factor), the
     /// lower triangle of P A Pᵀ with each entry's index in `values`, and its symbolic
     /// factorization (whose own ordering is the identity: the permutation is applied by
-    /// gathering).
-    pub(super) analysis: Analysis,
+    /// gathering). Shared with the single-precision twin ([`Self::single_twin`]): it never
+    /// changes after `new`.
+    pub(super) analysis: Arc<Analysis>,
     l_values: Vec<f64>,
     /// The gathered lower triangle's values.
     lower_values: Vec<f64>,
@@ -274,8 +287,23 @@ pub(super) struct Factor {
     /// Where set, the factor is nearly dense and small: factored as a dense matrix.
     dense: Option<Dense>,
     /// Where set, the split's halves are factored in single precision (a preconditioner's
-    /// factor, [`Self::into_single`]).
+    /// factor, [`Self::single_twin`]).
     single: Option<Single>,
+}
+
+/// Refuses `need` bytes for `what` beyond the memory limit `max_bytes`, if any.
+fn within(need: u64, max_bytes: Option<u64>, what: &'static str) -> Result<(), StepError> {
+    match max_bytes {
+        Some(limit) if need > limit => {
+            const GIB: f64 = (1u64 << 30) as f64;
+            Err(StepError::TooLarge {
+                what,
+                need_gib: need as f64 / GIB,
+                limit_gib: limit as f64 / GIB,
+            })
+        }
+        _ => Ok(()),
+    }
 }
 
 /// A single-precision factor's diagonal scaling: the matrix factored is D A D with
@@ -363,21 +391,12 @@ impl Factor {
                     Default::default(),
                 ),
             );
-        if let Some(limit) = max_bytes {
-            let need = (symbolic.len_val() as u64)
-                .saturating_add(3 * analysis.lower_row.len() as u64 + 3 * dofs as u64)
-                .saturating_mul(8)
-                .saturating_add(scratch.size_bytes() as u64)
-                .saturating_add((row_idx.len() as u64).saturating_mul(16));
-            if need > limit {
-                const GIB: f64 = (1u64 << 30) as f64;
-                return Err(StepError::TooLarge {
-                    what: "the Cholesky factor",
-                    need_gib: need as f64 / GIB,
-                    limit_gib: limit as f64 / GIB,
-                });
-            }
-        }
+        let need = (symbolic.len_val() as u64)
+            .saturating_add(3 * analysis.lower_row.len() as u64 + 3 * dofs as u64)
+            .saturating_mul(8)
+            .saturating_add(scratch.size_bytes() as u64)
+            .saturating_add((row_idx.len() as u64).saturating_mul(16));
+        within(need, max_bytes, "the Cholesky factor")?;
         let dense = (split.is_none()
             && dofs <= DENSE_MAX
             && (dofs as f64).powi(3) / 3.0 <= DENSE_FLOPS * analysis.flops)
@@ -421,37 +440,64 @@ impl Factor {
             } else {
                 faer::dyn_stack::StackReq::EMPTY
             }),
-            analysis,
+            analysis: Arc::new(analysis),
             split,
             dense,
             single: None,
         })
     }
 
-    /// This factor made approximate: its split's halves factored in single precision, of
-    /// the matrix scaled to a unit diagonal, so a solve with it is A⁻¹'s to about f32's
-    /// precision times A's conditioning — a preconditioner for conjugate gradients on A in
-    /// f64 (`one_ring.rs`), not an answer. f32's supernodal factorization ran in 0.51–0.63
-    /// of f64's time at 317² (100k vertices; each half, min of 3) and 0.6–0.9 at 128².
-    /// `None` where the factor is not split or its halves are hair-like (the own narrow
-    /// solve is f64 only). `col_ptr`/`row_idx`: the pattern it was built for.
-    pub(super) fn into_single(mut self, col_ptr: &[usize], row_idx: &[usize]) -> Option<Self> {
-        if !self.split.as_mut()?.make_single() {
-            return None;
-        }
+    /// A twin of this factor, approximate: the same analyses (shared, not redone: ordering
+    /// and symbolic analysis took 2.6 s at 317²), its split's halves factored in single
+    /// precision, of the matrix scaled to a unit diagonal, so a solve with it is A⁻¹'s to
+    /// about f32's precision times A's conditioning — a preconditioner for conjugate
+    /// gradients on A in f64 (`one_ring.rs`), not an answer. f32's supernodal factorization
+    /// ran in 0.51–0.63 of f64's time at 317² (100k vertices; each half, min of 3) and
+    /// 0.6–0.9 at 128². `None` where the factor is not split or its halves are hair-like
+    /// (the own narrow solve is f64 only). `col_ptr`/`row_idx`: the pattern it was built
+    /// for. Refuses a twin larger than `max_bytes` (its own buffers) before allocating it.
+    pub(super) fn single_twin(
+        &self,
+        col_ptr: &[usize],
+        row_idx: &[usize],
+        max_bytes: Option<u64>,
+    ) -> Result<Option<Self>, StepError> {
+        let Some(split) = self.split.as_ref() else {
+            return Ok(None);
+        };
+        within(
+            split.single_bytes(),
+            max_bytes,
+            "the single-precision Cholesky factor",
+        )?;
+        let Some(split) = split.single_twin() else {
+            return Ok(None);
+        };
         let dofs = col_ptr.len() - 1;
-        let diag = (0..dofs)
+        let Some(diag) = (0..dofs)
             .map(|c| {
                 (col_ptr[c]..col_ptr[c + 1])
                     .find(|&k| row_idx[k] == c)
                     .map(|k| value_index(col_ptr, k, c))
             })
-            .collect::<Option<Vec<usize>>>()?;
-        self.single = Some(Single {
-            diag,
-            scale: vec![1.0; dofs],
-        });
-        Some(self)
+            .collect::<Option<Vec<usize>>>()
+        else {
+            return Ok(None);
+        };
+        Ok(Some(Factor {
+            analysis: Arc::clone(&self.analysis),
+            l_values: Vec::new(),
+            lower_values: Vec::new(),
+            permuted: vec![0.0; dofs],
+            narrow_tmp: None,
+            mem: MemBuffer::new(faer::dyn_stack::StackReq::EMPTY),
+            split: Some(split),
+            dense: None,
+            single: Some(Single {
+                diag,
+                scale: vec![1.0; dofs],
+            }),
+        }))
     }
 
     /// Floating-point operations of one numeric factorization (the split's where split).

@@ -35,14 +35,15 @@ use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
 use faer::sparse::linalg::cholesky::supernodal::{SupernodalLltRef, SymbolicSupernodalCholesky};
 use faer::{Accum, Conj, MatMut, MatRef, Par};
 use nalgebra::Vector3;
+use std::sync::Arc;
 
 /// One half, bordered by the separator.
 struct Half {
     /// DOFs before the separator's.
     own: usize,
     /// Unknown i of this half's factor is DOF `analysis.fwd[i]`; the separator's DOFs are the
-    /// last `3 · n_sep`, in the separator's order.
-    analysis: Analysis,
+    /// last `3 · n_sep`, in the separator's order. Shared with a single-precision twin.
+    analysis: Arc<Analysis>,
     lower_values: Vec<f64>,
     l_values: Vec<f64>,
     /// The factorization's scratch, and faer's solve's.
@@ -55,7 +56,7 @@ struct Half {
     narrow_tmp: Option<Vec<f64>>,
     /// The trailing block L of the factor (dense, column-major, lower).
     tail: Vec<f64>,
-    /// Where this half is factored in single precision ([`Split::make_single`]): its lower
+    /// Where this half is factored in single precision ([`Split::single_twin`]): its lower
     /// triangle, factor and solve vector in f32 (`lower_values` and `l_values` then empty).
     single: Option<HalfSingle>,
 }
@@ -98,15 +99,40 @@ impl Half {
             x: vec![0.0; dofs],
             narrow_tmp,
             tail: vec![0.0; sep * sep],
-            analysis,
+            analysis: Arc::new(analysis),
             single: None,
         })
+    }
+
+    /// This half's single-precision twin (see [`Split::single_twin`]): the same analysis,
+    /// f32 buffers.
+    fn single_twin(&self) -> Self {
+        let symbolic = &self.analysis.symbolic;
+        let scratch = symbolic
+            .factorize_numeric_llt_scratch::<f32>(Par::Seq, Default::default())
+            .or(symbolic.solve_in_place_scratch::<f32>(1, Par::Seq));
+        Half {
+            own: self.own,
+            analysis: Arc::clone(&self.analysis),
+            lower_values: Vec::new(),
+            l_values: Vec::new(),
+            mem: MemBuffer::new(scratch),
+            x: vec![0.0; self.x.len()],
+            narrow_tmp: None,
+            tail: vec![0.0; self.tail.len()],
+            single: Some(HalfSingle {
+                lower_values: vec![0.0; self.analysis.lower_row.len()],
+                l_values: vec![0.0; symbolic.len_val()],
+                x: vec![0.0; self.x.len()],
+                gram: vec![0.0; self.tail.len()],
+            }),
+        }
     }
 
     /// Factors this half's bordered matrix from `values`, and copies the factor's trailing
     /// block into `tail`: whether it was positive definite.
     /// `scale`: where the half is single precision, the whole system's diagonal scaling
-    /// (the factor is then of D M D, see `Factor::into_single`).
+    /// (the factor is then of D M D, see `Factor::single_twin`).
     fn factor(&mut self, values: &[f64], scale: Option<&[f64]>) -> bool {
         match (self.single.as_mut(), scale) {
             (Some(single), Some(scale)) => {
@@ -323,8 +349,12 @@ impl Split {
             o.extend(&sep_vertices);
             o
         };
-        let a = Half::new(&half_order(0), na, col_ptr, row_idx)?;
-        let b = Half::new(&half_order(1), nb, col_ptr, row_idx)?;
+        // The halves' analyses are independent: concurrently (0.4 s each at 317²).
+        let (a, b) = rayon::join(
+            || Half::new(&half_order(0), na, col_ptr, row_idx),
+            || Half::new(&half_order(1), nb, col_ptr, row_idx),
+        );
+        let (a, b) = (a?, b?);
         let sep: Vec<usize> = sep_vertices
             .iter()
             .flat_map(|&v| [3 * v, 3 * v + 1, 3 * v + 2])
@@ -362,28 +392,50 @@ impl Split {
         }))
     }
 
-    /// Makes both halves single precision (`Factor::into_single`): false, and nothing
-    /// changed, where a half is hair-like (its own narrow solve is f64 only).
-    pub(super) fn make_single(&mut self) -> bool {
+    /// The twin of this split factored in single precision (`Factor::single_twin`): the
+    /// same halves, separator and analyses, with f32 buffers. `None` where a half is
+    /// hair-like (its own narrow solve is f64 only).
+    pub(super) fn single_twin(&self) -> Option<Self> {
         if self.halves.iter().any(|h| h.narrow_tmp.is_some()) {
-            return false;
+            return None;
         }
-        for h in &mut self.halves {
-            h.single = Some(HalfSingle {
-                lower_values: vec![0.0; h.lower_values.len()],
-                l_values: vec![0.0; h.l_values.len()],
-                x: vec![0.0; h.x.len()],
-                gram: vec![0.0; h.tail.len()],
-            });
-            h.lower_values = Vec::new();
-            h.l_values = Vec::new();
-        }
-        true
+        let m = self.sep.len();
+        Some(Split {
+            halves: [self.halves[0].single_twin(), self.halves[1].single_twin()],
+            sep: self.sep.clone(),
+            kss: self.kss.clone(),
+            schur: vec![0.0; m * m],
+            xs: vec![0.0; m],
+            mem: MemBuffer::new(
+                faer::linalg::cholesky::llt::factor::cholesky_in_place_scratch::<f64>(
+                    m,
+                    Par::Seq,
+                    Default::default(),
+                ),
+            ),
+            flops: self.flops,
+        })
+    }
+
+    /// The bytes [`Self::single_twin`] allocates: each half's f32 lower triangle and factor
+    /// (4 bytes an entry), its tail and gram (f64, m² each), its vectors, and the separator's
+    /// dense matrix.
+    pub(super) fn single_bytes(&self) -> u64 {
+        let m = self.sep.len() as u64;
+        let halves: u64 = self
+            .halves
+            .iter()
+            .map(|h| {
+                let entries = (h.analysis.lower_row.len() + h.analysis.symbolic.len_val()) as u64;
+                4 * entries + 16 * m * m + 12 * h.x.len() as u64
+            })
+            .sum();
+        halves + 8 * m * m + 16 * self.kss.len() as u64
     }
 
     /// Factors `values` (the whole pattern's): whether the matrix is positive definite.
     /// `scale`: for single-precision halves, the diagonal scaling D of the matrix factored,
-    /// D A D (`Factor::into_single`).
+    /// D A D (`Factor::single_twin`).
     pub(super) fn factor(&mut self, values: &[f64], scale: Option<&[f64]>) -> bool {
         let [a, b] = &mut self.halves;
         let (ok_a, ok_b) = rayon::join(|| a.factor(values, scale), || b.factor(values, scale));
