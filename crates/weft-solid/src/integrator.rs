@@ -1359,22 +1359,31 @@ impl Integrator {
 
     /// H's own pattern factored in single precision as CG's preconditioner
     /// (`OneRing::single`), where H's factorization costs at least
-    /// [`one_ring::SINGLE_MIN_FLOPS`] and may be split (no rigid groups).
-    fn build_single(&self, sys: &SolidSystem) -> Result<Option<one_ring::OneRing>, StepError> {
+    /// [`one_ring::SINGLE_MIN_FLOPS`] and may be split (no rigid groups), within `max_bytes`.
+    fn build_single(
+        &self,
+        sys: &SolidSystem,
+        max_bytes: Option<u64>,
+    ) -> Result<Option<one_ring::OneRing>, StepError> {
         if self.factor.flops() < one_ring::SINGLE_MIN_FLOPS
             || !sys.rigid.is_empty()
             || self.whole_only
         {
             return Ok(None);
         }
-        one_ring::OneRing::single(&self.factor, &self.col_ptr, &self.row_idx, self.max_bytes)
+        one_ring::OneRing::single(&self.factor, &self.col_ptr, &self.row_idx, max_bytes)
     }
 
     /// The one-ring preconditioner for this pattern (`one_ring.rs`), where it pays: its
     /// pattern keeps the pairs some element of at most three vertices couples (membrane
     /// triangles, rods, springs), every pair with a rigid group's node, and the contacts'
-    /// extra blocks; the wide elements' (shell bending's) other pairs are dropped.
-    fn build_one_ring(&self, sys: &SolidSystem) -> Result<Option<one_ring::OneRing>, StepError> {
+    /// extra blocks; the wide elements' (shell bending's) other pairs are dropped. Within
+    /// `max_bytes`.
+    fn build_one_ring(
+        &self,
+        sys: &SolidSystem,
+        max_bytes: Option<u64>,
+    ) -> Result<Option<one_ring::OneRing>, StepError> {
         let first = self.groups.first;
         let nbrs = self.vertex_graph();
         let mut keep: Vec<Vec<u32>> = (0..self.n_free as u32).map(|j| vec![j]).collect();
@@ -1416,7 +1425,7 @@ impl Integrator {
             self.factor.flops(),
             &at,
             sys.rigid.is_empty() && !self.whole_only,
-            self.max_bytes,
+            max_bytes,
         )
     }
 
@@ -1436,9 +1445,17 @@ impl Integrator {
         self.pcg = matches!(mode, Mode::Dynamic { .. }) && settings.method == Method::Newton;
         if self.pcg && !self.one_ring_tried {
             self.one_ring_tried = true;
-            // Not paying, or too large for the memory limit: H's factor serves as before.
-            self.one_ring = self.build_one_ring(sys).ok().flatten();
-            self.single = self.build_single(sys).ok().flatten();
+            // Not paying, or too large for the memory limit: H's factor serves as before. The
+            // limit holds for all the factors together: each preconditioner gets what H's
+            // factor and the one built before it left.
+            let max = self.max_bytes;
+            let left = |used: u64| max.map(|m| m.saturating_sub(used));
+            self.one_ring = self
+                .build_one_ring(sys, left(self.factor.bytes()))
+                .ok()
+                .flatten();
+            let used = self.factor.bytes() + self.one_ring.as_ref().map_or(0, |o| o.bytes());
+            self.single = self.build_single(sys, left(used)).ok().flatten();
         }
         if let Mode::Dynamic { h } = mode {
             for pre in [self.one_ring.as_mut(), self.single.as_mut()]
@@ -1769,6 +1786,44 @@ unsafe fn scatter(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// One memory limit holds for H's factor and its preconditioners together: with room for
+    /// H's factor and half its single-precision twin, the twin (which alone would fit) is
+    /// not built and the step factors H instead; unlimited, the twin is built. Both steps
+    /// converge.
+    #[test]
+    fn the_preconditioners_share_the_memory_limit_with_h() {
+        // 48² vertices: H's split factorization costs 1.57e8 flops, above the twin's 1e8.
+        let (sys, state) = order::tests::shell_sheet(48, 1e-3);
+        let settings = Settings::default();
+        let h = 1.0 / 24.0;
+        let mut free = Integrator::new(&sys).unwrap();
+        assert!(
+            free.factor.flops() >= one_ring::SINGLE_MIN_FLOPS,
+            "{:e}",
+            free.factor.flops()
+        );
+        let mut s1 = state.clone();
+        free.step(&sys, &mut s1, None, h, &settings).unwrap();
+        let twin = free
+            .single
+            .as_ref()
+            .expect("unlimited: the twin is built")
+            .bytes();
+        let limit = free.factor.bytes() + twin / 2;
+        // Checked each against the whole limit, H's factor and the twin would both fit.
+        assert!(twin <= limit);
+        // Set after building: the pattern's own check (a bound from the stencils' pairs, 47 MB
+        // here) is above this small system's factors (H's 25 MB, the one-ring's 11, the twin's
+        // 10), which at 317² dominate instead.
+        let mut tight = Integrator::new(&sys).unwrap();
+        tight.max_bytes = Some(limit);
+        let mut s2 = state.clone();
+        tight.step(&sys, &mut s2, None, h, &settings).unwrap();
+        assert!(tight.single.is_none());
+        let used = tight.factor.bytes() + tight.one_ring.as_ref().map_or(0, |o| o.bytes());
+        assert!(used <= limit, "{used} > {limit}");
+    }
 
     /// A matrix with a NaN entry is reported as such, at once, not after eight diagonal
     /// shifts whose scale the NaN hid (the message read "even with a diagonal shift of

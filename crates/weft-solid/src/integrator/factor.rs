@@ -1,7 +1,9 @@
 //! The Newton system's sparse Cholesky factorization: a fill-reducing ordering chosen for
 //! the pattern (`order.rs`), its symbolic analysis, and the numeric factorization and solve,
 //! whole or as two halves at once (`split.rs`). The integrator holds one for the system
-//! matrix, and another for the one-ring preconditioner where it has one (`one_ring.rs`).
+//! matrix, another for the one-ring preconditioner where it has one (`one_ring.rs`), and
+//! where H's is large a single-precision twin of H's, sharing its analyses
+//! ([`Factor::single_twin`]).
 //!
 //! Each factorization is sequential (`Par::Seq` throughout): faer's parallel supernodal
 //! Cholesky changes its reduction order with the thread count (measured: a 48×48 cloth
@@ -289,6 +291,8 @@ pub(super) struct Factor {
     /// Where set, the split's halves are factored in single precision (a preconditioner's
     /// factor, [`Self::single_twin`]).
     single: Option<Single>,
+    /// The bytes this factor was checked for against the memory limit ([`Self::bytes`]).
+    bytes: u64,
 }
 
 /// Refuses `need` bytes for `what` beyond the memory limit `max_bytes`, if any.
@@ -444,6 +448,7 @@ impl Factor {
             split,
             dense,
             single: None,
+            bytes: need,
         })
     }
 
@@ -465,11 +470,8 @@ impl Factor {
         let Some(split) = self.split.as_ref() else {
             return Ok(None);
         };
-        within(
-            split.single_bytes(),
-            max_bytes,
-            "the single-precision Cholesky factor",
-        )?;
+        let bytes = split.single_bytes();
+        within(bytes, max_bytes, "the single-precision Cholesky factor")?;
         let Some(split) = split.single_twin() else {
             return Ok(None);
         };
@@ -497,7 +499,15 @@ impl Factor {
                 diag,
                 scale: vec![1.0; dofs],
             }),
+            bytes,
         }))
+    }
+
+    /// The memory this factor holds, as estimated against the limit before allocating it (for
+    /// a system's factor, with the caller's pattern and values counted too): what is left of
+    /// the limit for the next factor ([`StepError::TooLarge`] otherwise).
+    pub(super) fn bytes(&self) -> u64 {
+        self.bytes
     }
 
     /// Floating-point operations of one numeric factorization (the split's where split).

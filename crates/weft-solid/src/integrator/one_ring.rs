@@ -362,6 +362,13 @@ impl OneRing {
         (Outcome::Failed, MAX_ITERATIONS)
     }
 
+    /// The memory this preconditioner holds (its factor's estimate, M's values and CG's
+    /// vectors), for the memory limit the integrator shares among its factors.
+    pub(super) fn bytes(&self) -> u64 {
+        let vectors = self.values.len() + self.r.len() * 4 + self.lump.len() * 2;
+        self.factor.bytes() + 8 * vectors as u64
+    }
+
     /// Whether M's factor is split in two halves (then steps run on a pool worker).
     pub(super) fn is_split(&self) -> bool {
         self.factor.split.is_some()
