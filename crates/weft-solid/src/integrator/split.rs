@@ -419,7 +419,7 @@ impl Split {
 
     /// The bytes [`Self::single_twin`] allocates: each half's f32 lower triangle and factor
     /// (4 bytes an entry), its tail and gram (f64, m² each), its vectors, and the separator's
-    /// dense matrix.
+    /// dense matrix and its copy of K_SS's entries.
     pub(super) fn single_bytes(&self) -> u64 {
         let m = self.sep.len() as u64;
         let halves: u64 = self
@@ -430,7 +430,8 @@ impl Split {
                 4 * entries + 16 * m * m + 12 * h.x.len() as u64
             })
             .sum();
-        halves + 8 * m * m + 16 * self.kss.len() as u64
+        let kss = std::mem::size_of::<(usize, usize, usize)>() * self.kss.len();
+        halves + 8 * m * m + kss as u64
     }
 
     /// Factors `values` (the whole pattern's): whether the matrix is positive definite.
