@@ -39,7 +39,7 @@ pub use crate::settings::{Method, Settings, StepError, StepStats, StopCheck};
 use crate::system::{SolidSystem, State, SystemError};
 pub use contacts::{CONTACT_VERTICES, Contact, ContactSet, ContactStats};
 use factor::{Analysis, Factor};
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Matrix2, Matrix3, Vector3};
 use pool::in_pool;
 use rayon::prelude::*;
 use std::cell::RefCell;
@@ -270,6 +270,11 @@ pub struct Integrator {
     slide_scale: Vec<f64>,
     /// Per slider: the normal force its target supplied at the last assembly [N].
     slide_normal: Vec<f64>,
+    /// Per membrane (the first elements), the stress whose tension its Hessian's geometric
+    /// term reads in a contact-free Newton step's first tries: the mixed form's carried
+    /// stress (`Membrane::eval_carried`), started at each step from the stress at x⁰ and
+    /// moved by each accepted step's linear prediction. Empty outside such a step.
+    carried: Vec<Matrix2<f64>>,
 }
 
 impl Integrator {
@@ -552,6 +557,7 @@ impl Integrator {
             slide_proj: Vec::new(),
             slide_scale: Vec::new(),
             slide_normal: Vec::new(),
+            carried: Vec::new(),
             per_element: RefCell::new(vec![0.0; slot_offset.len()]),
             budget: Vec::new(),
             budget_for: (f64::NAN, f64::NAN),
@@ -709,6 +715,7 @@ impl Integrator {
         let hinges = hinges_ref.as_deref();
         let midedges = &self.midedges;
         let budget = &self.budget;
+        let carried = &self.carried;
         let work = |&ei: &u32| {
             LOCAL.with(|l| {
                 let local = &mut **l.borrow_mut();
@@ -721,6 +728,9 @@ impl Integrator {
                         h.eval(k, &sys.elements.midedges[k], local);
                     }
                     (None, Hessians::Projected) => el.eval(x, true, local),
+                    (None, Hessians::First) if ei < carried.len() => {
+                        sys.elements.membranes[ei].eval_carried(x, &carried[ei], local)
+                    }
                     (None, Hessians::First) => el.eval_first(x, local),
                     (None, Hessians::Contact) => el.eval_contact(x, budget[ei], local),
                 }
@@ -754,6 +764,9 @@ impl Integrator {
                 let el = sys.elements.get(ei);
                 match hessians {
                     Hessians::Projected => el.eval(x, true, &mut local),
+                    Hessians::First if ei < self.carried.len() => {
+                        sys.elements.membranes[ei].eval_carried(x, &self.carried[ei], &mut local)
+                    }
                     Hessians::First => el.eval_first(x, &mut local),
                     Hessians::Contact => el.eval_contact(x, self.budget[ei], &mut local),
                 }
@@ -1132,6 +1145,10 @@ impl Integrator {
     /// direction in `dir`, or `None` when every try failed or the gradient is not finite
     /// (then `values` hold no usable matrix: the caller assembles the projected one).
     /// A shifted direction is shorter than Newton's: it must not end the iteration.
+    ///
+    /// Where membranes carry a stress (`carried`) their Hessians are the mixed form's, with
+    /// the geometric term's tension at the carried stress (see `Membrane::eval_carried`);
+    /// the inertia tries shift that matrix.
     fn first_direction(
         &mut self,
         sys: &SolidSystem,
@@ -1148,6 +1165,41 @@ impl Integrator {
             return None;
         }
         self.factor_first(sys, h, last_shift, stats)
+    }
+
+    /// Starts the membranes' carried stresses at the stresses at `x0` (the last step's
+    /// converged state: its stress is the mixed form's warm start, where the first guess's
+    /// is an overshoot), or clears them where the step does not carry any.
+    fn start_carried(&mut self, sys: &SolidSystem, x0: &[Vector3<f64>], carry: bool) {
+        self.carried.clear();
+        if carry {
+            let ms = &sys.elements.membranes;
+            self.carried.extend(ms.iter().map(|m| m.stress_at(x0)));
+        }
+    }
+
+    /// Moves the carried stresses by the step just taken from `from` to `to` at the fraction
+    /// `alpha` of its direction (`Membrane::predict_stress`).
+    fn carry_stress(
+        &mut self,
+        sys: &SolidSystem,
+        from: &[Vector3<f64>],
+        to: &[Vector3<f64>],
+        alpha: f64,
+    ) {
+        let ms = &sys.elements.membranes;
+        let update = |(s, m): (&mut Matrix2<f64>, &crate::energy::Membrane)| {
+            *s = m.predict_stress(from, to, s, alpha);
+        };
+        // Each stress on its own: the same bits at any thread count.
+        if ms.len() >= PARALLEL_MIN && rayon::current_num_threads() > 1 {
+            self.carried
+                .par_iter_mut()
+                .zip(ms.par_iter())
+                .for_each(update);
+        } else {
+            self.carried.iter_mut().zip(ms.iter()).for_each(update);
+        }
     }
 
     /// Solves with the last factor in place (`b` ← H⁻¹ b, 3 entries per free vertex).
@@ -1470,6 +1522,8 @@ impl Integrator {
         self.pcg_single = self.one_ring.is_none();
         let out = self.newton(sys, x, x0, mode, settings);
         self.pcg = false;
+        // Carried stresses belong to this step's iteration only.
+        self.carried.clear();
         out
     }
 
@@ -1501,6 +1555,9 @@ impl Integrator {
         // The inertia that last made the exact Hessian positive definite in this step.
         let mut last_shift = 0.0;
         let mut rate = rate::RateStop::default();
+        // Membranes carry their stress (the mixed form) where the first tries are exact.
+        let carry = matches!(mode, Mode::Dynamic { .. }) && settings.method == Method::Newton;
+        self.start_carried(sys, x0, carry);
         for it in 0..max_it {
             if self.should_stop() {
                 return Err(StepError::Interrupted { iteration: it });
@@ -1639,6 +1696,11 @@ impl Integrator {
             if linearized || done {
                 stats.converged = true;
                 break;
+            }
+            if !self.carried.is_empty() {
+                let from = std::mem::take(&mut self.x_trial);
+                self.carry_stress(sys, &from, x, alpha);
+                self.x_trial = from;
             }
             // Or the corrections still to come, estimated from the contraction of the full
             // steps (`rate.rs`), are below the tolerance: with the first Hessians only

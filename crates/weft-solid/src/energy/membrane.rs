@@ -232,6 +232,9 @@ enum Geo {
     Psd,
     /// S with its eigenvalues raised to at least −floor: a Hessian at least −floor Ā ‖W‖².
     Floor(f64),
+    /// The tensile part of a stress carried by the Newton iteration instead of S's, S's
+    /// compressive part kept (see [`Membrane::eval_carried`]).
+    Carried(Matrix2<f64>),
 }
 
 impl Element for Membrane {
@@ -264,7 +267,53 @@ impl Element for Membrane {
     }
 }
 
+/// The mixed (stress–displacement) form of Newton's method on a membrane, condensed.
+///
+/// With the stress σ a variable of its own, the membrane's energy is the saddle point of
+/// Ā (σ:E(x) − ½ σ:C⁻¹:σ) over σ, and Newton on (x, σ) linearizes E in x. Eliminating the
+/// stress's update (σ + dσ = C:(E + dE), dE = sym(Fᵀ dF)) leaves the primal system with the
+/// primal gradient — so the same stationary points, tested by the same tolerance — and one
+/// change: the geometric term Ā (Wᵀ σ W) ⊗ I₃ of the Hessian reads the carried σ, not
+/// S(x). Where the membrane is stiff against the inertia, a step that turns an edge by d
+/// lengthens it by ~d²/2L, so the tension at the new iterate (or at the first guess
+/// x⁰ + h v⁰) is an overshoot the solution does not have, and primal Newton builds its next
+/// model on it; the carried stress is what the last linear model predicted (it differs
+/// from S by O(d²)), started at each step from the last step's converged stress.
+///
+/// Only the tension is taken from σ: S's compressive part stays the iterate's, so the
+/// negative curvature where the sheet buckles is the exact Hessian's, as before. Measured
+/// (24 frames; Newton iterations a step, factorizations), primal → σ whole (the inertia
+/// ladder on its Hessian) → tension from σ: cloth_hang 7.96, 520 → 7.02, 617 → 6.17, 376;
+/// cloth_release 4.98, 362 → 3.48, 228 → 3.96, 299; the 64² sheet (`bench/sheet_graph.py`,
+/// 6 frames) 8.00, 70 → 6.83, 63 → 6.67, 60 (BENCHMARKS.md, thirty-second session).
 impl Membrane {
+    /// The second Piola–Kirchhoff stress S = C:E at `x`.
+    pub fn stress_at(&self, x: &[Vector3<f64>]) -> Matrix2<f64> {
+        self.material.stress(&Self::strain(&self.deformation(x)))
+    }
+
+    /// The stress carried after a step from `from` to `to` that took the fraction `alpha` of
+    /// the Newton direction: (1 − α) σ + C:(α E(from) + sym(F(from)ᵀ ΔF)), ΔF = F(to) − F(from)
+    /// (= α dF on a straight step), the linear model's prediction blended as the step was.
+    pub fn predict_stress(
+        &self,
+        from: &[Vector3<f64>],
+        to: &[Vector3<f64>],
+        carried: &Matrix2<f64>,
+        alpha: f64,
+    ) -> Matrix2<f64> {
+        let f = self.deformation(from);
+        let m = f.transpose() * (self.deformation(to) - f);
+        let de = 0.5 * (m + m.transpose());
+        carried * (1.0 - alpha) + self.material.stress(&(Self::strain(&f) * alpha + de))
+    }
+
+    /// Energy and gradient at `x`, and the Hessian whose geometric term reads `carried`
+    /// instead of the stress at `x` (exact where `carried` is S(x)); it may be indefinite.
+    pub fn eval_carried(&self, x: &[Vector3<f64>], carried: &Matrix2<f64>, out: &mut Local) {
+        self.eval_geo(x, Geo::Carried(*carried), out);
+    }
+
     /// Energy, gradient and the Hessian with the geometric term as `geo_mode` says.
     fn eval_geo(&self, x: &[Vector3<f64>], geo_mode: Geo, out: &mut Local) {
         let f = self.deformation(x);
@@ -291,6 +340,8 @@ impl Membrane {
             Geo::Exact => s,
             Geo::Psd => psd_part(&s),
             Geo::Floor(floor) => clamp_below(&s, floor),
+            // The carried stress's tension, the iterate's compression.
+            Geo::Carried(carried) => psd_part(&carried) + (s - psd_part(&s)),
         };
         // dS for the unit strains sym(eⱼ w_bᵀ), per b and j.
         let mut ds = [[Matrix2::<f64>::zeros(); 2]; 3];
@@ -326,6 +377,24 @@ impl Membrane {
 mod tests {
     use super::*;
     use crate::energy::fd::check;
+
+    /// `tri()` stretched (and moved out of its plane).
+    fn stretched() -> Vec<Vector3<f64>> {
+        vec![
+            Vector3::new(0.0, 0.0, 0.01),
+            Vector3::new(0.12, 0.01, 0.0),
+            Vector3::new(0.02, 0.09, 0.02),
+        ]
+    }
+
+    /// `tri()` compressed (and moved out of its plane).
+    fn compressed() -> Vec<Vector3<f64>> {
+        vec![
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(0.07, 0.01, 0.01),
+            Vector3::new(0.03, 0.05, -0.01),
+        ]
+    }
 
     fn tri() -> [Vector3<f64>; 3] {
         [
@@ -450,11 +519,7 @@ mod tests {
     fn the_contact_hessian_keeps_negative_curvature_down_to_its_budget() {
         let mat = MembraneMaterial::orthotropic(1e5, 0.3, 1e-3, 1.0, 1.0, 1.0);
         let m = Membrane::new([0, 1, 2], tri(), Vector3::x(), mat).unwrap();
-        let compressed = vec![
-            Vector3::new(0.0, 0.0, 0.0),
-            Vector3::new(0.07, 0.01, 0.01),
-            Vector3::new(0.03, 0.05, -0.01),
-        ];
+        let compressed = compressed();
         let hessian = |l: &Local| SMatrix::<f64, 9, 9>::from_fn(|r, c| l.hess[c][r]);
         let (mut exact, mut projected, mut bounded) =
             (Local::default(), Local::default(), Local::default());
@@ -500,5 +565,86 @@ mod tests {
             err.to_string(),
             "triangle [4, 5, 6] has zero rest area (0e0 m²)"
         );
+    }
+
+    /// The carried stress after a step is the linear model's: S at the end of the step
+    /// minus C:(½ ΔFᵀΔF), the one term of the Green strain the model leaves out (exact,
+    /// since E is quadratic in x); a partial step blends it with the stress carried before.
+    #[test]
+    fn the_carried_stress_is_the_linear_models_prediction() {
+        let mat = MembraneMaterial::orthotropic(1e5, 0.3, 1e-3, 3.0, 0.5, 0.2);
+        let m = Membrane::new([0, 1, 2], tri(), Vector3::new(1.0, 1.0, 0.0), mat).unwrap();
+        let from = stretched();
+        let step = [
+            Vector3::new(0.004, -0.01, 0.02),
+            Vector3::new(-0.01, 0.003, 0.015),
+            Vector3::new(0.0, 0.008, -0.03),
+        ];
+        let to: Vec<_> = from.iter().zip(&step).map(|(p, d)| p + d).collect();
+        let df = m.deformation(&to) - m.deformation(&from);
+        let left_out = mat.stress(&(0.5 * df.transpose() * df));
+        let carried = Matrix2::new(7.0, -2.0, -2.0, 3.0);
+        let whole = m.predict_stress(&from, &to, &carried, 1.0);
+        let expected = m.stress_at(&to) - left_out;
+        // Rounding of stresses of ~1e2 N/m: 1e-10 relative.
+        assert!(
+            (whole - expected).amax() <= 1e-10 * expected.amax(),
+            "{whole} {expected}"
+        );
+        // A half step (to the midpoint) is half the way from the carried stress to the whole
+        // step's prediction (Newton's update of (x, σ) together, scaled by the line search).
+        let mid: Vec<_> = from.iter().zip(&step).map(|(p, d)| p + 0.5 * d).collect();
+        let half = m.predict_stress(&from, &mid, &carried, 0.5);
+        let expected = 0.5 * carried + 0.5 * (m.stress_at(&to) - left_out);
+        assert!(
+            (half - expected).amax() <= 1e-10 * expected.amax(),
+            "{half} {expected}"
+        );
+    }
+
+    /// Carrying the stress at the iterate gives the exact Hessian (stretched or compressed);
+    /// carrying another changes only the geometric term's tension: a compressed triangle
+    /// keeps its exact negative curvature, a relaxed one's Hessian gains the carried
+    /// tension's (Wᵀ σ₊ W) ⊗ I₃.
+    #[test]
+    fn carrying_the_iterates_stress_gives_the_exact_hessian() {
+        let mat = MembraneMaterial::orthotropic(1e5, 0.3, 1e-3, 1.0, 1.0, 1.0);
+        let m = Membrane::new([0, 1, 2], tri(), Vector3::new(1.0, 0.0, 0.0), mat).unwrap();
+        let stretched = stretched();
+        let compressed = compressed();
+        let (mut exact, mut carried) = (Local::default(), Local::default());
+        for x in [&stretched, &compressed] {
+            m.eval(x, false, &mut exact);
+            m.eval_carried(x, &m.stress_at(x), &mut carried);
+            let scale = (0..9).map(|i| exact.hess[i][i].abs()).fold(0.0, f64::max);
+            for c in 0..9 {
+                assert_eq!(carried.grad[c], exact.grad[c]);
+                for r in 0..9 {
+                    // psd(S) + (S − psd(S)) is S up to rounding.
+                    assert!((carried.hess[c][r] - exact.hess[c][r]).abs() <= 1e-12 * scale);
+                }
+            }
+        }
+        // At rest S = 0: carrying a tension σ adds Ā (w_aᵀ σ w_b) I₃ to each block.
+        let rest = tri().to_vec();
+        let sigma = Matrix2::new(40.0, 5.0, 5.0, 10.0);
+        m.eval(&rest, false, &mut exact);
+        m.eval_carried(&rest, &sigma, &mut carried);
+        for a in 0..3 {
+            for b in 0..3 {
+                let geo = m.area * m.w[a].dot(&(sigma * m.w[b]));
+                for k in 0..3 {
+                    let d = carried.hess[3 * b + k][3 * a + k] - exact.hess[3 * b + k][3 * a + k];
+                    assert!((d - geo).abs() <= 1e-9 * geo.abs().max(1.0), "{d} {geo}");
+                }
+            }
+        }
+        // Carried compression adds nothing: the compressive part is the iterate's.
+        m.eval_carried(&rest, &(-sigma), &mut carried);
+        for c in 0..9 {
+            for r in 0..9 {
+                assert!((carried.hess[c][r] - exact.hess[c][r]).abs() <= 1e-12);
+            }
+        }
     }
 }
