@@ -66,9 +66,10 @@ fn cloth_hang_keeps_its_pins_and_its_size_and_hangs() {
 /// buckle in frame 3: there the same Newton solver with a tolerance of 1e-4 against 1e-8
 /// ends 1.1e-5 m apart (3e-13 m in frames 1–2, measured), as a step's objective has nearby
 /// minima and the path decides which one a step ends in; later the trajectories separate by
-/// up to centimetres. So frames from 3 on are not compared. Iterations: measured 7.96
-/// against 13.42 a step over 24 frames (8.9 before the rate's stopping test and other
-/// changes); over 12 frames Newton must take at most 3/4 of projected Newton's.
+/// up to centimetres. So frames from 3 on are not compared. Iterations: measured 6.17
+/// against 13.42 a step over 24 frames (7.96 before the membranes' carried stress, 8.9
+/// before the rate's stopping test and other changes); over 12 frames Newton must take at
+/// most 3/4 of projected Newton's.
 #[test]
 fn cloth_hang_newton_matches_projected_newton_in_fewer_iterations() {
     let run = |method: &str| {

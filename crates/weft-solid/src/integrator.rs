@@ -1704,7 +1704,8 @@ impl Integrator {
             }
             // Or the corrections still to come, estimated from the contraction of the full
             // steps (`rate.rs`), are below the tolerance: with the first Hessians only
-            // (exact where cheap, midedge bending's Gauss–Newton term; unshifted), whose
+            // (exact where cheap, membranes' tension carried — the mixed form's Newton —,
+            // midedge bending's Gauss–Newton term; unshifted), whose
             // convergence is superlinear. A shifted direction is not Newton's, projected
             // Hessians converge linearly at a rate that can worsen as the fast modes die
             // out (projected Newton on cloth_hang: 13.42 → 10.56 iterations a step with
