@@ -197,3 +197,110 @@ fn a_start_inside_a_collider_separates_by_strength() {
     assert!((reported[0] - 0.75 * 5e-4).abs() < 1e-9, "{reported:?}");
     assert!(reported[5] == 0.0, "{reported:?}");
 }
+
+/// A closed prism along z whose top has a shallow V notch: a concave edge along z at
+/// y = −2 mm, faces rising at 1 in 50 to y = 0 at x = ±0.1 m; bottom at y = −0.1 m; z in
+/// ±0.05 m. Outward triangles, the cross-section fanned from the notch.
+fn notched_prism() -> Mesh {
+    let section = [
+        [-0.1, -0.1],
+        [0.1, -0.1],
+        [0.1, 0.0],
+        [0.0, -2e-3],
+        [-0.1, 0.0],
+    ];
+    let n = section.len() as u32;
+    let mut positions = Vec::new();
+    for z in [-0.05, 0.05] {
+        positions.extend(section.iter().map(|p| [p[0], p[1], z]));
+    }
+    let mut triangles = Vec::new();
+    for i in 0..n {
+        let j = (i + 1) % n;
+        // The section runs counter-clockwise: (dy, −dx) points out of each side.
+        triangles.push([i, j, n + j]);
+        triangles.push([i, n + j, n + i]);
+    }
+    for [a, b, c] in [[3, 4, 0], [3, 0, 1], [3, 1, 2]] {
+        triangles.push([n + a, n + b, n + c]);
+        triangles.push([c, b, a]);
+    }
+    Mesh {
+        positions,
+        triangles,
+    }
+}
+
+/// A hair strand that starts inside a collider, level, 0.5 mm under a concave edge (the
+/// prism's notch): its vertices (x = −0.03, 0.01, 0.03 m; 1.1, 0.7 and 1.1 mm deep) get
+/// contacts from their nearest faces, and its first segment, closest to the surface between
+/// its vertices (under the notch), one of its own, whose plane must face out of the
+/// collider as theirs do. No gravity, strength 0.5, one step of 1/24 s: the step converges
+/// at once (no retry) and every one of those points rises by at least half of (its depth +
+/// the 1 mm kept) along its normal (the notch's point 0.75 mm, up), to the solver's tolerance
+/// (1e-9 m/s over the step). A segment's point was once taken as outside whatever its side,
+/// its plane facing into the collider, opposite its vertices' (hair_pile at frame 10, a
+/// vertex 0.65 mm inside the head): contacts no step can meet.
+#[test]
+fn a_strand_inside_a_collider_leaves_through_the_nearest_surface() {
+    use weft_scene::{Collider as ColliderSec, Curves, Rod};
+    let y0 = -2e-3 - 5e-4;
+    let xs = [-0.03, 0.01, 0.03];
+    let mut hair = SceneElement::new(
+        "hair",
+        ElementKind::Hair,
+        Geometry::Curves(Curves {
+            positions: xs.iter().map(|&x| [x, y0, 0.0]).collect(),
+            offsets: vec![0, 3],
+        }),
+    );
+    hair.secs.insert(Rod {
+        youngs_modulus: 1e9,
+        radius: 2e-4,
+        ..Default::default()
+    });
+    hair.secs.insert(ColliderSec {
+        friction: 0.0,
+        thickness: 1e-3,
+        cohesion: 0.0,
+    });
+    let scene = vec![hair, collider("block", notched_prism()), group(0.5)];
+    let tree = BehaviorTree {
+        behaviors: vec![Arc::new(RodMaterial), Arc::new(Collision)],
+    };
+    let c = Arc::new(compile(&scene, &tree).unwrap());
+    let settings = StepperSettings {
+        substeps: 1,
+        solver: weft_solid::Settings {
+            tolerance: 1e-9,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let mut s = SolidStepper::new(c, settings).unwrap();
+    let st = s.initial_state(&scene);
+    let (next, stats) = s.advance(&st, &scene, 1, 1.0 / 24.0).unwrap();
+    assert_eq!(stats.retries, 0);
+    let x = &next.solid.x;
+    let tol = 1e-9 / 24.0;
+    // Each vertex under a face sloping at 1 in 50 (outward normal (∓0.02, 1)/|·| for x ≷ 0).
+    for (k, &xk) in xs.iter().enumerate() {
+        let slope: f64 = if xk < 0.0 { -0.02 } else { 0.02 };
+        let normal = nalgebra::Vector2::new(-slope, 1.0).normalize();
+        let depth = (-2e-3 + slope * xk - y0) * normal.y;
+        let rise = normal.dot(&nalgebra::Vector2::new(x[k].x - xk, x[k].y - y0));
+        assert!(
+            rise >= 0.5 * (depth + 1e-3) - tol,
+            "vertex {k} rose {rise} m"
+        );
+    }
+    // Nothing pushes along the notch: the strand stays in its plane (z = 0; a contact with
+    // a triangle other than the nearest once turned it 14 mm sideways).
+    assert!(x.iter().all(|p| p.z.abs() < 1e-12), "{x:?}");
+    // The first segment's point under the notch (s = 0.75 along it).
+    let lifted = 0.25 * x[0].y + 0.75 * x[1].y - y0;
+    assert!(
+        lifted >= 0.75e-3 - tol,
+        "the point under the notch rose {lifted} m"
+    );
+}
