@@ -273,7 +273,9 @@ pub struct Integrator {
     /// Per membrane (the first elements), the stress whose tension its Hessian's geometric
     /// term reads in a contact-free Newton step's first tries: the mixed form's carried
     /// stress (`Membrane::eval_carried`), started at each step from the stress at x⁰ and
-    /// moved by each accepted step's linear prediction. Empty outside such a step.
+    /// moved by each accepted step's linear prediction; in a contact step, the stress at x⁰
+    /// for its first model's assembly only (`Membrane::eval_contact_carried`). Empty
+    /// otherwise.
     carried: Vec<Matrix2<f64>>,
 }
 
@@ -732,6 +734,8 @@ impl Integrator {
                         sys.elements.membranes[ei].eval_carried(x, &carried[ei], local)
                     }
                     (None, Hessians::First) => el.eval_first(x, local),
+                    (None, Hessians::Contact) if ei < carried.len() => sys.elements.membranes[ei]
+                        .eval_contact_carried(x, budget[ei], &carried[ei], local),
                     (None, Hessians::Contact) => el.eval_contact(x, budget[ei], local),
                 }
                 // SAFETY: see `Shared`: elements run concurrently write disjoint entries, and
@@ -768,6 +772,8 @@ impl Integrator {
                         sys.elements.membranes[ei].eval_carried(x, &self.carried[ei], &mut local)
                     }
                     Hessians::First => el.eval_first(x, &mut local),
+                    Hessians::Contact if ei < self.carried.len() => sys.elements.membranes[ei]
+                        .eval_contact_carried(x, self.budget[ei], &self.carried[ei], &mut local),
                     Hessians::Contact => el.eval_contact(x, self.budget[ei], &mut local),
                 }
                 let k3 = 3 * el.vertices().len();
@@ -1170,7 +1176,7 @@ impl Integrator {
     /// Starts the membranes' carried stresses at the stresses at `x0` (the last step's
     /// converged state: its stress is the mixed form's warm start, where the first guess's
     /// is an overshoot), or clears them where the step does not carry any.
-    fn start_carried(&mut self, sys: &SolidSystem, x0: &[Vector3<f64>], carry: bool) {
+    pub(super) fn start_carried(&mut self, sys: &SolidSystem, x0: &[Vector3<f64>], carry: bool) {
         self.carried.clear();
         if carry {
             let ms = &sys.elements.membranes;

@@ -235,6 +235,8 @@ enum Geo {
     /// The tensile part of a stress carried by the Newton iteration instead of S's, S's
     /// compressive part kept (see [`Membrane::eval_carried`]).
     Carried(Matrix2<f64>),
+    /// [`Geo::Carried`] with S's compressive part clamped as [`Geo::Floor`] does.
+    CarriedFloor(Matrix2<f64>, f64),
 }
 
 impl Element for Membrane {
@@ -314,6 +316,20 @@ impl Membrane {
         self.eval_geo(x, Geo::Carried(*carried), out);
     }
 
+    /// [`Element::eval_contact`] with the geometric term's tension read from `carried`:
+    /// still at least −`budget` (the carried tension adds a PSD term, the compression is
+    /// clamped as there).
+    pub fn eval_contact_carried(
+        &self,
+        x: &[Vector3<f64>],
+        budget: f64,
+        carried: &Matrix2<f64>,
+        out: &mut Local,
+    ) {
+        let floor = budget.max(0.0) / (self.area * self.shape_norm2());
+        self.eval_geo(x, Geo::CarriedFloor(*carried, floor), out);
+    }
+
     /// Energy, gradient and the Hessian with the geometric term as `geo_mode` says.
     fn eval_geo(&self, x: &[Vector3<f64>], geo_mode: Geo, out: &mut Local) {
         let f = self.deformation(x);
@@ -342,6 +358,9 @@ impl Membrane {
             Geo::Floor(floor) => clamp_below(&s, floor),
             // The carried stress's tension, the iterate's compression.
             Geo::Carried(carried) => psd_part(&carried) + (s - psd_part(&s)),
+            Geo::CarriedFloor(carried, floor) => {
+                psd_part(&carried) + (clamp_below(&s, floor) - psd_part(&s))
+            }
         };
         // dS for the unit strains sym(eⱼ w_bᵀ), per b and j.
         let mut ds = [[Matrix2::<f64>::zeros(); 2]; 3];
@@ -644,6 +663,56 @@ mod tests {
         for c in 0..9 {
             for r in 0..9 {
                 assert!((carried.hess[c][r] - exact.hess[c][r]).abs() <= 1e-12);
+            }
+        }
+    }
+
+    /// The contact step's model with a carried stress: carrying S(x) gives the contact
+    /// step's own Hessian (its compression bounded by the budget either way), and a carried
+    /// tension at rest adds Ā (w_aᵀ σ w_b) I₃ to it, as in the contact-free step.
+    #[test]
+    fn the_contact_models_carried_tension_keeps_its_compression_bound() {
+        let mat = MembraneMaterial::orthotropic(1e5, 0.3, 1e-3, 1.0, 1.0, 1.0);
+        let m = Membrane::new([0, 1, 2], tri(), Vector3::new(1.0, 0.0, 0.0), mat).unwrap();
+        let (mut bounded, mut carried) = (Local::default(), Local::default());
+        // A budget small enough that the compressed triangle's floor binds.
+        let budget = 1.0;
+        let mut exact = Local::default();
+        m.eval(&compressed(), false, &mut exact);
+        m.eval_contact(&compressed(), budget, &mut bounded);
+        let clamped = (0..9).any(|c| (0..9).any(|r| bounded.hess[c][r] != exact.hess[c][r]));
+        assert!(clamped, "the budget binds on the compressed triangle");
+        m.eval_contact(&compressed(), 1e12, &mut bounded);
+        let scale = (0..9).map(|i| exact.hess[i][i].abs()).fold(0.0, f64::max);
+        let unbounded = (0..9).all(|c| {
+            (0..9).all(|r| (bounded.hess[c][r] - exact.hess[c][r]).abs() <= 1e-12 * scale)
+        });
+        assert!(
+            unbounded,
+            "a budget that does not bind leaves the exact Hessian"
+        );
+        for x in [&stretched(), &compressed()] {
+            m.eval_contact(x, budget, &mut bounded);
+            m.eval_contact_carried(x, budget, &m.stress_at(x), &mut carried);
+            let scale = (0..9).map(|i| bounded.hess[i][i].abs()).fold(0.0, f64::max);
+            for c in 0..9 {
+                assert_eq!(carried.grad[c], bounded.grad[c]);
+                for r in 0..9 {
+                    assert!((carried.hess[c][r] - bounded.hess[c][r]).abs() <= 1e-12 * scale);
+                }
+            }
+        }
+        let rest = tri().to_vec();
+        let sigma = Matrix2::new(40.0, 5.0, 5.0, 10.0);
+        m.eval_contact(&rest, budget, &mut bounded);
+        m.eval_contact_carried(&rest, budget, &sigma, &mut carried);
+        for a in 0..3 {
+            for b in 0..3 {
+                let geo = m.area * m.w[a].dot(&(sigma * m.w[b]));
+                for k in 0..3 {
+                    let d = carried.hess[3 * b + k][3 * a + k] - bounded.hess[3 * b + k][3 * a + k];
+                    assert!((d - geo).abs() <= 1e-9 * geo.abs().max(1.0), "{d} {geo}");
+                }
             }
         }
     }

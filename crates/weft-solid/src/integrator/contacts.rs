@@ -459,9 +459,22 @@ impl Integrator {
             if self.should_stop() {
                 return Err(StepError::Interrupted { iteration: it });
             }
+            // The first model's membranes read the tension of the stress at x⁰ (the last
+            // step's converged one), not the first guess's overshoot (see
+            // `Membrane::eval_contact_carried`); later models read the iterate's. Carried
+            // through the iterations as in the contact-free loop, cloth_pile retried a substep
+            // in every run of an ensemble (a contact step's Newton loop crawling past 100
+            // iterations). Measured (ensembles by bench/ensemble.py, Newton iterations a
+            // step): cloth_drape 9.82 → 9.08, cloth_pile 8.88 → 8.28 (4 runs each), hair_pile
+            // 8.11 → 7.91 (8 runs; retried substeps 2.0 → 2.75), BENCHMARKS.md, thirty-third
+            // session. Set and cleared around the one assembly, so no other solve reads it.
+            if it == 0 {
+                self.start_carried(sys, &x0, settings.method == Method::Newton);
+            }
             let t = std::time::Instant::now();
             self.assemble_with(sys, &x, &x0, Mode::Dynamic { h }, Hessians::Contact);
             stats.assembly_seconds += t.elapsed().as_secs_f64();
+            self.carried.clear();
             if it == 0 {
                 for (k, a) in active.iter().enumerate() {
                     let n = a.c.frame.row(0).transpose();
