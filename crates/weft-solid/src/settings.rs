@@ -188,6 +188,20 @@ pub enum StepError {
         /// The tolerance asked for.
         tolerance: f64,
     },
+    /// A contact solve that may be retried smaller diverged: a Newton step 1e7 times its
+    /// first (or the tolerance, if larger), after which the iterate is no longer near any
+    /// answer; the caller retries the step smaller.
+    #[error(
+        "the contact solve diverged at Newton iteration {iteration}: a step of {step:e} m/s against {first:e} m/s at the first (or the tolerance)"
+    )]
+    Diverged {
+        /// Newton iteration (0-based).
+        iteration: usize,
+        /// That iteration's step, ‖Δx‖∞/h [m/s].
+        step: f64,
+        /// The first iteration's step [m/s].
+        first: f64,
+    },
     /// The step would end with primitives of the solids passing through each other (found by
     /// continuous detection after the contacts' last re-solve): a smaller step is tried.
     #[error(
