@@ -813,4 +813,16 @@ fn the_hair_pile_never_crosses() {
         "the hair is not on the cloth in frames 19–24: {on_cloth} m"
     );
     assert!(lowest < 0.38, "the hair's lowest point is at {lowest} m");
+    // Every retried substep says why (this run retries four: a contact solve that diverged,
+    // one at Newton's limit, two that would end with primitives passing through each other).
+    let report = g.node_report("solve").expect("the solver's report");
+    let frames = report["solid_frames"].as_array().unwrap();
+    let retries: u64 = frames.iter().map(|f| f["retries"].as_u64().unwrap()).sum();
+    let causes: Vec<&str> = frames
+        .iter()
+        .flat_map(|f| f["retry_causes"].as_array().unwrap())
+        .map(|c| c.as_str().unwrap())
+        .collect();
+    assert_eq!(causes.len() as u64, retries, "{causes:?}");
+    assert!(causes.iter().all(|c| !c.is_empty()), "{causes:?}");
 }

@@ -84,6 +84,9 @@ pub struct FrameStats {
     pub steps: usize,
     /// Substeps that were split because a step failed.
     pub retries: usize,
+    /// Why each of those failed, in order: the failure's kind ([`StepError::kind`]) and its
+    /// message (the attempt that was split, not its halves' own failures, which come after).
+    pub retry_causes: Vec<(&'static str, String)>,
     /// Newton iterations, summed over steps: a contact step's rounds solved again after its
     /// exact check included (not the substeps that failed and were retried as halves).
     pub newton_iterations: usize,
@@ -287,8 +290,9 @@ impl SolidStepper {
             Err(StepError::System(e)) => Err(StepError::System(e)),
             // A stop is not a failure: retrying with smaller steps would only delay it.
             Err(e @ StepError::Interrupted { .. }) => Err(e),
-            Err(_) if depth < self.settings.max_retries => {
+            Err(e) if depth < self.settings.max_retries => {
                 stats.retries += 1;
+                stats.retry_causes.push((e.kind(), e.to_string()));
                 let mid = 0.5 * (s0 + s1);
                 // Split steps are implicit Euler; the step after them starts BDF2 again.
                 *history = None;

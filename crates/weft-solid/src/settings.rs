@@ -235,6 +235,24 @@ pub enum StepError {
     },
 }
 
+impl StepError {
+    /// A short name of the failure's kind, for counting retried steps by cause (the message,
+    /// [`std::fmt::Display`], has the numbers).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            StepError::System(_) => "inconsistent system",
+            StepError::NonFinite { .. } => "non-finite values",
+            StepError::NotConverged { .. } => "Newton did not converge",
+            StepError::ContactsNotConverged { .. } => "contacts did not converge",
+            StepError::Diverged { .. } => "contact solve diverged",
+            StepError::Intersecting { .. } => "primitives would pass through each other",
+            StepError::Factorization(_) => "factorization failed",
+            StepError::TooLarge { .. } => "too large",
+            StepError::Interrupted { .. } => "stopped",
+        }
+    }
+}
+
 /// Asked once per Newton iteration (and per explicit step): true when the step should end
 /// with [`StepError::Interrupted`] (Ctrl-C, a time limit, a host's cancel).
 pub type StopCheck = std::sync::Arc<dyn Fn() -> bool + Send + Sync>;

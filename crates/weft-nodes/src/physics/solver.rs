@@ -81,6 +81,23 @@ fn settings(p: &Params, max_bytes: u64) -> Result<StepperSettings, weft_graph::P
 }
 
 /// The values on `elements` that are elements (shared with upstream).
+/// Retried substeps counted by cause, in the order each cause first came: "2 × Newton did not
+/// converge, 1 × contact solve diverged".
+fn retry_summary(causes: &[(&'static str, String)]) -> String {
+    let mut counts: Vec<(&str, usize)> = Vec::new();
+    for (kind, _) in causes {
+        match counts.iter_mut().find(|(k, _)| k == kind) {
+            Some((_, n)) => *n += 1,
+            None => counts.push((kind, 1)),
+        }
+    }
+    counts
+        .iter()
+        .map(|(k, n)| format!("{n} × {k}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 fn element_inputs(cx: &mut EvalCx<'_>) -> Result<Vec<Value>, NodeError> {
     let mut inputs = cx.inputs("elements")?;
     inputs.retain(|v| v.get::<SceneElement>().is_some());
@@ -197,8 +214,9 @@ impl Step for SolidSolver {
             })?;
         if stats.retries > 0 {
             cx.warn(format!(
-                "{} substep(s) failed and were retried with smaller steps",
-                stats.retries
+                "{} substep(s) failed and were retried with smaller steps ({})",
+                stats.retries,
+                retry_summary(&stats.retry_causes)
             ));
         }
         if self.frames.len() == 1024 {
@@ -282,6 +300,7 @@ impl Step for SolidSolver {
                     "extrapolations": s.extrapolations,
                     "extrapolation_halvings": s.extrapolation_halvings,
                     "rate_stops": s.rate_stops,
+                    "retry_causes": s.retry_causes.iter().map(|(_, m)| m).collect::<Vec<_>>(),
                 });
                 if let Some(c) = &s.contacts {
                     j["contacts"] = super::types::contact_stats_json(c);
@@ -323,6 +342,29 @@ mod tests {
     use super::*;
     use weft_scene::{ElementKind, Geometry};
     use weft_sim::{DiscreteShellMaterial, Gravity, compile};
+
+    /// The warning's summary counts retried substeps by kind, first come first.
+    #[test]
+    fn retried_substeps_are_summarised_by_cause() {
+        let causes = [
+            (
+                "Newton did not converge",
+                "Newton did not converge in 100 …".to_string(),
+            ),
+            (
+                "contact solve diverged",
+                "the contact solve diverged at …".to_string(),
+            ),
+            (
+                "Newton did not converge",
+                "Newton did not converge in 100 …".to_string(),
+            ),
+        ];
+        assert_eq!(
+            retry_summary(&causes),
+            "2 × Newton did not converge, 1 × contact solve diverged"
+        );
+    }
 
     /// A kept frame's size, which the memory budget thins the kept frames by: its positions
     /// and velocities, and each input element's data (counted even where it is shared, as a
