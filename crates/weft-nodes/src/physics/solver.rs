@@ -80,7 +80,6 @@ fn settings(p: &Params, max_bytes: u64) -> Result<StepperSettings, weft_graph::P
     })
 }
 
-/// The values on `elements` that are elements (shared with upstream).
 /// Retried substeps counted by cause, in the order each cause first came: "2 × Newton did not
 /// converge, 1 × contact solve diverged".
 fn retry_summary(causes: &[(&'static str, String)]) -> String {
@@ -98,6 +97,7 @@ fn retry_summary(causes: &[(&'static str, String)]) -> String {
         .join(", ")
 }
 
+/// The values on `elements` that are elements (shared with upstream).
 fn element_inputs(cx: &mut EvalCx<'_>) -> Result<Vec<Value>, NodeError> {
     let mut inputs = cx.inputs("elements")?;
     inputs.retain(|v| v.get::<SceneElement>().is_some());

@@ -811,11 +811,14 @@ impl Detector {
                     Some(true) => nearest(c, live, candidates, &b).map(|(_, t, _)| t),
                     _ => None,
                 };
+                // The path enters the collider through `tri`.
+                let crosses = |tri: &[V; 3]| {
+                    segment_crosses_triangle(&a, &b, &tri[0], &tri[1], &tri[2])
+                        && (!c.closed || face_normal(tri).dot(&(b - a)) < 0.0)
+                };
                 for &t in candidates.iter() {
                     let tri = live.triangle(c, t);
-                    let crossed = segment_crosses_triangle(&a, &b, &tri[0], &tri[1], &tri[2])
-                        && (!c.closed || face_normal(&tri).dot(&(b - a)) < 0.0);
-                    if nearest_b.is_some_and(|n| n != t) && !crossed {
+                    if nearest_b.is_some_and(|n| n != t) && !crosses(&tri) {
                         continue;
                     }
                     let wb = closest_on_triangle(&b, &tri[0], &tri[1], &tri[2]);
@@ -826,6 +829,7 @@ impl Detector {
                         deepest = deepest.max(-clearance);
                         continue;
                     }
+                    let crossed = crosses(&tri);
                     if crossed || clearance < -1e-3 * pair.distance {
                         let wa = closest_on_triangle(&a, &tri[0], &tri[1], &tri[2]);
                         contacts.push(contact(setup, &at, (t, wa), x0, h, inside_a));
