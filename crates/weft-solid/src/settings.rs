@@ -188,9 +188,10 @@ pub enum StepError {
         /// The tolerance asked for.
         tolerance: f64,
     },
-    /// A contact solve that may be retried smaller diverged: a Newton step 1e7 times its
-    /// first (or the tolerance, if larger), after which the iterate is no longer near any
-    /// answer; the caller retries the step smaller.
+    /// A contact solve that may be retried smaller diverged: a Newton step grown past a large
+    /// multiple of its first (or of the tolerance, if larger; the factor is `DIVERGED` in
+    /// `integrator/contacts.rs`), after which the iterate is no longer near any answer; the
+    /// caller retries the step smaller.
     #[error(
         "the contact solve diverged at Newton iteration {iteration}: a step of {step:e} m/s against {first:e} m/s at the first (or the tolerance)"
     )]

@@ -798,19 +798,17 @@ impl Detector {
                     .query(&(a.inf(&b) - pad), &(a.sup(&b) + pad), candidates);
                 candidates.sort_unstable();
                 // Inside or outside is the nearest triangle's call, not each candidate's.
+                let judged_b = judged_nearest(c, live, candidates, &b);
                 let (inside_a, inside_b) = (
                     inside_closed(c, live, candidates, &a),
-                    inside_closed(c, live, candidates, &b),
+                    judged_b.map(|(inside, _)| inside),
                 );
                 // A vertex that ends inside (a start inside, leaving by `strength` of its
                 // depth a step) is as deep as its nearest triangle says, and leaves through
                 // it: another triangle's closest point is not on its way out, and a contact
                 // there pushed it towards that point (measured: a strand 1.1 mm under a
                 // notched block's top turned 14 mm sideways in one step).
-                let nearest_b = match inside_b {
-                    Some(true) => nearest(c, live, candidates, &b).map(|(_, t, _)| t),
-                    _ => None,
-                };
+                let nearest_b = judged_b.and_then(|(inside, t)| inside.then_some(t));
                 // The path enters the collider through `tri`.
                 let crosses = |tri: &[V; 3]| {
                     segment_crosses_triangle(&a, &b, &tri[0], &tri[1], &tri[2])
@@ -997,11 +995,21 @@ fn face_normal(tri: &[V; 3]) -> V {
 /// of `candidates` (`None` for open meshes or no candidates). The candidates must include
 /// every triangle nearer to `p` than the ones the caller judges.
 fn inside_closed(c: &ColliderSetup, live: &Live, candidates: &[u32], p: &V) -> Option<bool> {
+    judged_nearest(c, live, candidates, p).map(|(inside, _)| inside)
+}
+
+/// [`inside_closed`]'s answer with the nearest triangle that gave it.
+fn judged_nearest(
+    c: &ColliderSetup,
+    live: &Live,
+    candidates: &[u32],
+    p: &V,
+) -> Option<(bool, u32)> {
     if !c.closed {
         return None;
     }
     let (_, t, w) = nearest(c, live, candidates, p)?;
-    Some(side(c, live, t, &w, (p, p), None).1 < 0.0)
+    Some((side(c, live, t, &w, (p, p), None).1 < 0.0, t))
 }
 
 /// The contact normal (local frame, unit) of the point `a` against triangle `t` at its closest

@@ -649,20 +649,31 @@ mod tests {
         let sigma = Matrix2::new(40.0, 5.0, 5.0, 10.0);
         m.eval(&rest, false, &mut exact);
         m.eval_carried(&rest, &sigma, &mut carried);
-        for a in 0..3 {
-            for b in 0..3 {
-                let geo = m.area * m.w[a].dot(&(sigma * m.w[b]));
-                for k in 0..3 {
-                    let d = carried.hess[3 * b + k][3 * a + k] - exact.hess[3 * b + k][3 * a + k];
-                    assert!((d - geo).abs() <= 1e-9 * geo.abs().max(1.0), "{d} {geo}");
-                }
-            }
-        }
+        assert_adds_carried_tension(&m, &sigma, &exact, &carried);
         // Carried compression adds nothing: the compressive part is the iterate's.
         m.eval_carried(&rest, &(-sigma), &mut carried);
         for c in 0..9 {
             for r in 0..9 {
                 assert!((carried.hess[c][r] - exact.hess[c][r]).abs() <= 1e-12);
+            }
+        }
+    }
+
+    /// `carried`'s Hessian is `base`'s plus a carried tension σ's geometric term at rest,
+    /// Ā (w_aᵀ σ w_b) I₃ on each block (a, b).
+    fn assert_adds_carried_tension(
+        m: &Membrane,
+        sigma: &Matrix2<f64>,
+        base: &Local,
+        carried: &Local,
+    ) {
+        for a in 0..3 {
+            for b in 0..3 {
+                let geo = m.area * m.w[a].dot(&(sigma * m.w[b]));
+                for k in 0..3 {
+                    let d = carried.hess[3 * b + k][3 * a + k] - base.hess[3 * b + k][3 * a + k];
+                    assert!((d - geo).abs() <= 1e-9 * geo.abs().max(1.0), "{d} {geo}");
+                }
             }
         }
     }
@@ -706,14 +717,6 @@ mod tests {
         let sigma = Matrix2::new(40.0, 5.0, 5.0, 10.0);
         m.eval_contact(&rest, budget, &mut bounded);
         m.eval_contact_carried(&rest, budget, &sigma, &mut carried);
-        for a in 0..3 {
-            for b in 0..3 {
-                let geo = m.area * m.w[a].dot(&(sigma * m.w[b]));
-                for k in 0..3 {
-                    let d = carried.hess[3 * b + k][3 * a + k] - bounded.hess[3 * b + k][3 * a + k];
-                    assert!((d - geo).abs() <= 1e-9 * geo.abs().max(1.0), "{d} {geo}");
-                }
-            }
-        }
+        assert_adds_carried_tension(&m, &sigma, &bounded, &carried);
     }
 }
