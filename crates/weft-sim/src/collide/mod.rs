@@ -816,7 +816,9 @@ impl Detector {
                 };
                 for &t in candidates.iter() {
                     let tri = live.triangle(c, t);
-                    if nearest_b.is_some_and(|n| n != t) && !crosses(&tri) {
+                    // Tested here only where an inside end skips the triangle, and kept.
+                    let crossed_here = nearest_b.is_some_and(|n| n != t).then(|| crosses(&tri));
+                    if crossed_here == Some(false) {
                         continue;
                     }
                     let wb = closest_on_triangle(&b, &tri[0], &tri[1], &tri[2]);
@@ -827,7 +829,7 @@ impl Detector {
                         deepest = deepest.max(-clearance);
                         continue;
                     }
-                    let crossed = crosses(&tri);
+                    let crossed = crossed_here.unwrap_or_else(|| crosses(&tri));
                     if crossed || clearance < -1e-3 * pair.distance {
                         let wa = closest_on_triangle(&a, &tri[0], &tri[1], &tri[2]);
                         contacts.push(contact(setup, &at, (t, wa), x0, h, inside_a));
