@@ -480,6 +480,7 @@ impl Integrator {
             // session. Set and cleared around the one assembly, so no other solve reads it.
             if it == 0 {
                 self.start_carried(sys, &x0, settings.method == Method::Newton);
+                self.start_slide_forces(sys);
             }
             let t = std::time::Instant::now();
             self.assemble_with(sys, &x, &x0, Mode::Dynamic { h }, Hessians::Contact);
@@ -762,6 +763,9 @@ impl Integrator {
                 }
             }
             x = trial;
+            if !sys.sliders.is_empty() {
+                self.predict_slide_forces(&delta, alpha);
+            }
             stats.iterations = it + 1;
             stats.residuals.push(step);
             if !step.is_finite() {
@@ -835,6 +839,7 @@ impl Integrator {
             *v = (xi - x0i) / h;
         }
         state.x = x;
+        self.end_slide_forces();
         Ok((stats, cstats))
     }
 

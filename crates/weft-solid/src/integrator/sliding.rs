@@ -4,9 +4,41 @@
 
 use nalgebra::{Matrix3, Vector3};
 
-use super::{Integrator, Mode, NONE};
+use super::{Integrator, Mode, NONE, block_entry};
 use crate::slide::{FRICTION_EPS_V, friction_f0_f1, place, projector};
 use crate::system::SolidSystem;
+
+/// What sliders' friction reads its normal force from: the force each target supplies as
+/// the Newton model predicts it at the iterate, not as the iterate's gradient reads it.
+///
+/// The target's force is the part of the gradient on the sliding node its filter removes:
+/// at a converged step, the constraint's reaction. Read at an iterate it is the reaction
+/// plus whatever the stiffest element next to the node is out of balance: a strand's
+/// stretch (EA/L = 1.8e5 N/m against its root's m/h² of 0.61 N/m) turns a position error of
+/// tol·h = 2e-6 m into 0.35 N on a strand weighing 0.04 N, so friction read from it held a
+/// root that should slide and stalled Newton (BENCHMARKS.md, thirty-fourth and
+/// thirty-fifth sessions). The model's prediction g + αH·d after a step α·d is the
+/// constraint's multiplier estimate of sequential quadratic programming (Nocedal & Wright
+/// §18.3): the free rows' residual is met by the step, so only the model's error — second
+/// order in the step — is left in it. Each step starts from the last converged step's
+/// prediction; the first step of all, and a slider without one, read the gradient.
+#[derive(Default)]
+pub(super) struct SlideForces {
+    /// Per slider: its node at the last assembly, or NONE (held, or no node).
+    node: Vec<u32>,
+    /// Per slider: the gradient on its node at the last assembly, before the filter and
+    /// friction.
+    grad: Vec<Vector3<f64>>,
+    /// Per slider: its node's column of the matrix at the last assembly, before the filter
+    /// and friction, as (row node, block) from `start[k]` to `start[k + 1]`.
+    column: Vec<(u32, Matrix3<f64>)>,
+    start: Vec<usize>,
+    /// Per slider: the gradient on its node the model predicts at the iterate (None: read
+    /// the gradient).
+    predicted: Vec<Option<Vector3<f64>>>,
+    /// `predicted` at the end of the last converged step.
+    converged: Vec<Option<Vector3<f64>>>,
+}
 
 /// The mass-weighted centroid of `members` at `x`.
 fn centroid(sys: &SolidSystem, members: &[u32], x: &[Vector3<f64>]) -> Vector3<f64> {
@@ -82,6 +114,60 @@ impl Integrator {
         }
     }
 
+    /// Starts a step's predicted target forces at the last converged step's (`SlideForces`).
+    pub(super) fn start_slide_forces(&mut self, sys: &SolidSystem) {
+        let sf = &mut self.slide_forces;
+        sf.predicted.clear();
+        if sf.converged.len() == sys.sliders.len() {
+            sf.predicted.extend_from_slice(&sf.converged);
+        } else {
+            sf.predicted.resize(sys.sliders.len(), None);
+        }
+    }
+
+    /// Moves the predicted target forces by the step `alpha`·`dir` just taken: g + αH·d on
+    /// each slider's node, with the gradient and matrix of the assembly `dir` was solved with.
+    pub(super) fn predict_slide_forces(&mut self, dir: &[f64], alpha: f64) {
+        let sf = &mut self.slide_forces;
+        for (k, &f) in sf.node.iter().enumerate() {
+            if f == NONE {
+                sf.predicted[k] = None;
+                continue;
+            }
+            // (H d)_f = Σₐ H_fa dₐ = Σₐ (H_af)ᵀ dₐ: the stored column's blocks, transposed.
+            let mut g = sf.grad[k];
+            for (a, b) in &sf.column[sf.start[k]..sf.start[k + 1]] {
+                let a = 3 * *a as usize;
+                g += alpha * b.tr_mul(&Vector3::new(dir[a], dir[a + 1], dir[a + 2]));
+            }
+            sf.predicted[k] = Some(g);
+        }
+    }
+
+    /// Keeps the predicted target forces of a step that converged, to start the next.
+    pub(super) fn end_slide_forces(&mut self) {
+        let sf = &mut self.slide_forces;
+        sf.converged.clear();
+        sf.converged.extend_from_slice(&sf.predicted);
+    }
+
+    /// Keeps slider `k`'s node `f`, its gradient and its column of the matrix, before the
+    /// filter and friction change them (`SlideForces`).
+    fn keep_column(&mut self, k: usize, f: usize, g: Vector3<f64>) {
+        let sf = &mut self.slide_forces;
+        sf.node[k] = f as u32;
+        sf.grad[k] = g;
+        let start = self.col_ptr[3 * f];
+        let slots = (self.col_ptr[3 * f + 1] - start) / 3;
+        for s in 0..slots {
+            let a = self.row_idx[start + 3 * s] / 3;
+            let at = block_entry(&self.col_ptr, f, s, 0, 0);
+            let b = Matrix3::from_column_slice(&self.values[at..at + 9]);
+            sf.column.push((a as u32, b));
+        }
+        sf.start[k + 1] = sf.column.len();
+    }
+
     /// Whether any slider has friction (its potential then changes with the iterate's normal
     /// force, so an objective value is not carried from one iteration to the next).
     pub(super) fn slide_friction(sys: &SolidSystem) -> bool {
@@ -119,7 +205,8 @@ impl Integrator {
     /// s (I − P) is added to its diagonal block, s the mean of its diagonal before (positive:
     /// the block of an SPD matrix). The matrix stays SPD when it was, and its solution moves
     /// sliding vertices along their targets only. In dynamic steps, friction's gradient and
-    /// Hessian are added first, with N the normal part of the gradient so far.
+    /// Hessian are added first, with N the normal part of the gradient the Newton model
+    /// predicts at `x` (`SlideForces`; the gradient itself where it has no prediction).
     pub(super) fn filter_sliders(
         &mut self,
         sys: &SolidSystem,
@@ -131,12 +218,24 @@ impl Integrator {
             return;
         }
         self.map_sliders(sys, x);
+        let n_sliders = sys.sliders.len();
+        let sf = &mut self.slide_forces;
+        sf.node.clear();
+        sf.node.resize(n_sliders, NONE);
+        sf.grad.resize(n_sliders, Vector3::zeros());
+        sf.column.clear();
+        sf.start.clear();
+        sf.start.resize(n_sliders + 1, 0);
+        sf.predicted.resize(n_sliders, None);
         for (k, sl) in sys.sliders.iter().enumerate() {
             let v = sl.vertex as usize;
+            let from = self.slide_forces.column.len();
+            self.slide_forces.start[k + 1] = from;
             let Some((f, at)) = self.slider_node(sys, x, v) else {
                 continue;
             };
             let g = Vector3::new(self.grad[3 * f], self.grad[3 * f + 1], self.grad[3 * f + 2]);
+            self.keep_column(k, f, g);
             let p = match place(&sys.rails, &sys.surfaces, sl.on, &at) {
                 Some(pl) => projector(&pl, &g),
                 None => Matrix3::zeros(),
@@ -146,10 +245,15 @@ impl Integrator {
                 .map(|c| self.values[self.diagonal_entry(f, c)])
                 .sum::<f64>()
                 / 3.0;
-            // The normal force the target supplies: the part of the gradient it takes. Held at
-            // a stop (P = 0), the vertex does not slide: no friction.
+            // The normal force the target supplies: the part of the (predicted) gradient it
+            // takes. Held at a stop (P = 0), the vertex does not slide: no friction.
             let held = p == Matrix3::zeros();
-            self.slide_normal[k] = if held { 0.0 } else { (g - p * g).norm() };
+            let force = self.slide_forces.predicted[k].unwrap_or(g);
+            self.slide_normal[k] = if held {
+                0.0
+            } else {
+                (force - p * force).norm()
+            };
             let (Mode::Dynamic { h }, true) = (mode, sl.friction > 0.0 && !held) else {
                 continue;
             };
