@@ -1727,9 +1727,10 @@ impl Integrator {
             // out (projected Newton on cloth_hang: 13.42 → 10.56 iterations a step with
             // them, 1.9 → 2.9 cm off the converged run where it buckles), and sliders'
             // friction, lagged a normal force behind, makes the loop a fixed-point iteration
-            // (even with the model's normal force, `SlideForces`: a swinging strand whose root
-            // slides with friction, μ = 0.05, ended 4.1e-4 m from its converged run with it,
-            // 2.4e-6 m without, at 1e-4 m/s; curtain_rail 5.73 iterations a step either way).
+            // (even with the model's normal force, `SlideForces`, carried from step to step as
+            // first written: a swinging strand whose root slides with friction, μ = 0.05,
+            // ended 4.1e-4 m from its converged run with it, 2.4e-6 m without, at 1e-4 m/s;
+            // curtain_rail 5.73 iterations a step either way).
             let full = alpha == 1.0
                 && stats.corrections == corrections
                 && first == Some(false)
@@ -1748,7 +1749,6 @@ impl Integrator {
                 iteration: stats.iterations,
             });
         }
-        self.end_slide_forces();
         Ok(stats)
     }
 

@@ -839,7 +839,6 @@ impl Integrator {
             *v = (xi - x0i) / h;
         }
         state.x = x;
-        self.end_slide_forces();
         Ok((stats, cstats))
     }
 

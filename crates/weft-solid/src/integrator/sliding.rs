@@ -17,14 +17,21 @@ use crate::system::SolidSystem;
 /// stretch (EA/L = 1.8e5 N/m against its root's m/h² of 0.61 N/m) turns a position error of
 /// tol·h = 2e-6 m into 0.35 N on a strand weighing 0.04 N, so friction read from it held a
 /// root that should slide and stalled Newton (BENCHMARKS.md, thirty-fourth and
-/// thirty-fifth sessions). The model's prediction g + αH·d after a step α·d is the
-/// constraint's multiplier estimate of sequential quadratic programming (Nocedal & Wright
-/// §18.3): the free rows' residual is met by the step, so only the model's error — second
-/// order in the step — is left in it. Each step starts from the last converged step's
-/// prediction; the first step of all, and a slider without one, read the gradient.
+/// thirty-fifth sessions). After a step α·d the model predicts g + αH·d on the node: for a
+/// full step the free rows' imbalance is met and only the model's error, second order in
+/// the step, is left (the multiplier estimate of sequential quadratic programming); a
+/// shortened step leaves (1 − α) of the iterate's. H is the matrix before the filter,
+/// friction, inertia shifts and contact terms: friction and the filter act along the
+/// target (P) and the shifts are isotropic on a node whose step is along it, so none has a
+/// normal part; d is taken along each slider's target (P d), as the retraction leaves it.
+/// Each step starts from the gradient at its first iterate: nothing is carried from one
+/// step to the next, so a step still depends on its inputs alone (resuming from any
+/// checkpoint gives the same bits). Kept only for sliders with friction in dynamic steps,
+/// the only readers.
 #[derive(Default)]
 pub(super) struct SlideForces {
-    /// Per slider: its node at the last assembly, or NONE (held, or no node).
+    /// Per slider: its node at the last assembly, or NONE (no friction to read it, or no
+    /// node: its vertex pinned).
     node: Vec<u32>,
     /// Per slider: the gradient on its node at the last assembly, before the filter and
     /// friction.
@@ -36,9 +43,15 @@ pub(super) struct SlideForces {
     /// Per slider: the gradient on its node the model predicts at the iterate (None: read
     /// the gradient).
     predicted: Vec<Option<Vector3<f64>>>,
-    /// `predicted` at the end of the last converged step.
-    converged: Vec<Option<Vector3<f64>>>,
 }
+
+/// How much stiffer than its inertia m/h² a sliding node may be (its diagonal's mean, its
+/// neighbours' stiffness included) and still have the normal force of a step's first
+/// iteration read from the gradient at the first guess, whose error is the position
+/// error times that stiffness. Measured: curtain_rail's rings 87–136 (from the gradient:
+/// 5.83 Newton iterations a step, 6.38 without friction in the first iteration), a strand
+/// root 9.7e4 (from the gradient 16.2–19.7 iterations a step, without friction 5.90–6.52).
+const STIFF_NODE: f64 = 1e3;
 
 /// The mass-weighted centroid of `members` at `x`.
 fn centroid(sys: &SolidSystem, members: &[u32], x: &[Vector3<f64>]) -> Vector3<f64> {
@@ -72,6 +85,17 @@ impl Integrator {
                 centroid(sys, &self.groups.members[g], x),
             )
         })
+    }
+
+    /// The mass that slider vertex `v`'s node moves: the vertex's, or its rigid group's.
+    fn node_mass(&self, sys: &SolidSystem, v: usize) -> f64 {
+        match self.groups.of.get(v).copied() {
+            Some(g) if self.free_of[v] == NONE && g != NONE => self.groups.members[g as usize]
+                .iter()
+                .map(|&u| sys.mass[u as usize])
+                .sum(),
+            _ => sys.mass[v],
+        }
     }
 
     /// Maps free vertices (and groups' translation nodes) to their sliders (the system's
@@ -114,19 +138,17 @@ impl Integrator {
         }
     }
 
-    /// Starts a step's predicted target forces at the last converged step's (`SlideForces`).
+    /// Starts a step with no predicted target force (`SlideForces`: nothing carried).
     pub(super) fn start_slide_forces(&mut self, sys: &SolidSystem) {
         let sf = &mut self.slide_forces;
         sf.predicted.clear();
-        if sf.converged.len() == sys.sliders.len() {
-            sf.predicted.extend_from_slice(&sf.converged);
-        } else {
-            sf.predicted.resize(sys.sliders.len(), None);
-        }
+        sf.predicted.resize(sys.sliders.len(), None);
+        sf.node.clear();
     }
 
-    /// Moves the predicted target forces by the step `alpha`·`dir` just taken: g + αH·d on
-    /// each slider's node, with the gradient and matrix of the assembly `dir` was solved with.
+    /// Moves the predicted target forces by the step `alpha`·`dir` just taken: g + αH·(P d)
+    /// on each slider's node, with the gradient and the matrix kept at the assembly `dir`
+    /// was solved from (`SlideForces`), each sliding node's part of `dir` along its target.
     pub(super) fn predict_slide_forces(&mut self, dir: &[f64], alpha: f64) {
         let sf = &mut self.slide_forces;
         for (k, &f) in sf.node.iter().enumerate() {
@@ -137,18 +159,16 @@ impl Integrator {
             // (H d)_f = Σₐ H_fa dₐ = Σₐ (H_af)ᵀ dₐ: the stored column's blocks, transposed.
             let mut g = sf.grad[k];
             for (a, b) in &sf.column[sf.start[k]..sf.start[k + 1]] {
-                let a = 3 * *a as usize;
-                g += alpha * b.tr_mul(&Vector3::new(dir[a], dir[a + 1], dir[a + 2]));
+                let a = *a as usize;
+                let mut d = Vector3::new(dir[3 * a], dir[3 * a + 1], dir[3 * a + 2]);
+                let slider = self.slide_of[a];
+                if slider != NONE {
+                    d = self.slide_proj[slider as usize] * d;
+                }
+                g += alpha * b.tr_mul(&d);
             }
             sf.predicted[k] = Some(g);
         }
-    }
-
-    /// Keeps the predicted target forces of a step that converged, to start the next.
-    pub(super) fn end_slide_forces(&mut self) {
-        let sf = &mut self.slide_forces;
-        sf.converged.clear();
-        sf.converged.extend_from_slice(&sf.predicted);
     }
 
     /// Keeps slider `k`'s node `f`, its gradient and its column of the matrix, before the
@@ -227,6 +247,7 @@ impl Integrator {
         sf.start.clear();
         sf.start.resize(n_sliders + 1, 0);
         sf.predicted.resize(n_sliders, None);
+        let dynamic = matches!(mode, Mode::Dynamic { .. });
         for (k, sl) in sys.sliders.iter().enumerate() {
             let v = sl.vertex as usize;
             let from = self.slide_forces.column.len();
@@ -235,9 +256,14 @@ impl Integrator {
                 continue;
             };
             let g = Vector3::new(self.grad[3 * f], self.grad[3 * f + 1], self.grad[3 * f + 2]);
-            self.keep_column(k, f, g);
+            if dynamic && sl.friction > 0.0 {
+                self.keep_column(k, f, g);
+            }
+            // The force on the node (the model's where it has one): whether it pushes past a
+            // stop is the sign of the constraint's multiplier.
+            let force = self.slide_forces.predicted[k].unwrap_or(g);
             let p = match place(&sys.rails, &sys.surfaces, sl.on, &at) {
-                Some(pl) => projector(&pl, &g),
+                Some(pl) => projector(&pl, &force),
                 None => Matrix3::zeros(),
             };
             self.slide_proj[k] = p;
@@ -248,11 +274,22 @@ impl Integrator {
             // The normal force the target supplies: the part of the (predicted) gradient it
             // takes. Held at a stop (P = 0), the vertex does not slide: no friction.
             let held = p == Matrix3::zeros();
-            let force = self.slide_forces.predicted[k].unwrap_or(g);
-            self.slide_normal[k] = if held {
-                0.0
-            } else {
-                (force - p * force).norm()
+            let predicted = self.slide_forces.predicted[k];
+            // With no prediction yet (a step's first iteration), the gradient, unless the
+            // node is stiffly held by its neighbours: then its normal part is mostly their
+            // imbalance at the first guess (a swinging strand's root: 1.84 N where the strand
+            // weighs 0.04 N) and the first iteration runs without friction.
+            let stiff = match mode {
+                Mode::Dynamic { h } => {
+                    self.slide_scale[k] > STIFF_NODE * self.node_mass(sys, v) / (h * h)
+                }
+                Mode::Static => false,
+            };
+            self.slide_normal[k] = match predicted {
+                _ if held => 0.0,
+                Some(f) => (f - p * f).norm(),
+                None if stiff && sl.friction > 0.0 => 0.0,
+                None => (g - p * g).norm(),
             };
             let (Mode::Dynamic { h }, true) = (mode, sl.friction > 0.0 && !held) else {
                 continue;
