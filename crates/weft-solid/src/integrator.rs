@@ -1568,7 +1568,7 @@ impl Integrator {
         // Membranes carry their stress (the mixed form) where the first tries are exact.
         let carry = matches!(mode, Mode::Dynamic { .. }) && settings.method == Method::Newton;
         self.start_carried(sys, x0, carry);
-        self.start_slide_forces(sys);
+        self.start_slide_forces(sys, !linearized);
         for it in 0..max_it {
             if self.should_stop() {
                 return Err(StepError::Interrupted { iteration: it });

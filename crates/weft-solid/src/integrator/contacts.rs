@@ -480,7 +480,7 @@ impl Integrator {
             // session. Set and cleared around the one assembly, so no other solve reads it.
             if it == 0 {
                 self.start_carried(sys, &x0, settings.method == Method::Newton);
-                self.start_slide_forces(sys);
+                self.start_slide_forces(sys, true);
             }
             let t = std::time::Instant::now();
             self.assemble_with(sys, &x, &x0, Mode::Dynamic { h }, Hessians::Contact);

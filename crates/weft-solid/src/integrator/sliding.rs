@@ -24,10 +24,10 @@ use crate::system::SolidSystem;
 /// friction, inertia shifts and contact terms: friction and the filter act along the
 /// target (P) and the shifts are isotropic on a node whose step is along it, so none has a
 /// normal part; d is taken along each slider's target (P d), as the retraction leaves it.
-/// Each step starts from the gradient at its first iterate: nothing is carried from one
-/// step to the next, so a step still depends on its inputs alone (resuming from any
-/// checkpoint gives the same bits). Kept only for sliders with friction in dynamic steps,
-/// the only readers.
+/// Each step starts from the gradient at its first iterate, or without friction for a
+/// stiffly held node (`STIFF_NODE`): nothing is carried from one step to the next, so a
+/// step still depends on its inputs alone (resuming from any checkpoint gives the same
+/// bits). Kept only for sliders with friction in dynamic steps, the only readers.
 #[derive(Default)]
 pub(super) struct SlideForces {
     /// Per slider: its node at the last assembly, or NONE (no friction to read it, or no
@@ -43,6 +43,9 @@ pub(super) struct SlideForces {
     /// Per slider: the gradient on its node the model predicts at the iterate (None: read
     /// the gradient).
     predicted: Vec<Option<Vector3<f64>>>,
+    /// Whether a stiffly held node's first iteration may run without friction (not in a
+    /// linearized step, whose one iteration is its answer).
+    free_first: bool,
 }
 
 /// How much stiffer than its inertia m/h² a sliding node may be (its diagonal's mean, its
@@ -138,9 +141,11 @@ impl Integrator {
         }
     }
 
-    /// Starts a step with no predicted target force (`SlideForces`: nothing carried).
-    pub(super) fn start_slide_forces(&mut self, sys: &SolidSystem) {
+    /// Starts a step with no predicted target force (`SlideForces`: nothing carried);
+    /// `iterated`: the step runs Newton to its tolerance (not one linearized iteration).
+    pub(super) fn start_slide_forces(&mut self, sys: &SolidSystem, iterated: bool) {
         let sf = &mut self.slide_forces;
+        sf.free_first = iterated;
         sf.predicted.clear();
         sf.predicted.resize(sys.sliders.len(), None);
         sf.node.clear();
@@ -278,7 +283,8 @@ impl Integrator {
             // With no prediction yet (a step's first iteration), the gradient, unless the
             // node is stiffly held by its neighbours: then its normal part is mostly their
             // imbalance at the first guess (a swinging strand's root: 1.84 N where the strand
-            // weighs 0.04 N) and the first iteration runs without friction.
+            // weighs 0.04 N) and the first iteration of an iterated step runs without
+            // friction.
             let stiff = match mode {
                 Mode::Dynamic { h } => {
                     self.slide_scale[k] > STIFF_NODE * self.node_mass(sys, v) / (h * h)
@@ -288,7 +294,7 @@ impl Integrator {
             self.slide_normal[k] = match predicted {
                 _ if held => 0.0,
                 Some(f) => (f - p * f).norm(),
-                None if stiff && sl.friction > 0.0 => 0.0,
+                None if stiff && sl.friction > 0.0 && self.slide_forces.free_first => 0.0,
                 None => (g - p * g).norm(),
             };
             let (Mode::Dynamic { h }, true) = (mode, sl.friction > 0.0 && !held) else {
@@ -437,6 +443,50 @@ mod tests {
             assert!((s.v[i] - along * t).norm() < 1e-9, "{:?}", s.v[i]);
         }
         assert!(((s.x[1] - s.x[0]).norm() - 0.01).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_linearized_step_slides_a_stiff_bead_by_coulomb() {
+        // One iteration a step: its friction reads the normal force from the gradient at the
+        // first guess, which for a bead moving along a straight wire is exact (m g cos θ;
+        // the segment's stretch is along the wire), as is the step (constant forces along
+        // it, speed beyond the mollifier's ε_v): v_n = v₀ + n h g (sin θ − μ cos θ). The
+        // node is stiff (segment 1e6 N/m against m/h² = 100 N/m): an iterated step's first
+        // iteration would run without friction, a linearized one must not.
+        let (theta, mu) = (0.3f64, 0.2);
+        let (rail, t) = tilted(theta);
+        let mut sys = SolidSystem::new(vec![0.01, 0.01]);
+        sys.gravity = Vector3::new(0.0, -9.81, 0.0);
+        sys.elements.stretches.push(RodStretch {
+            v: [0, 1],
+            rest_length: 0.01,
+            k: 1e4,
+        });
+        sys.rails.push(rail);
+        sys.sliders = (0..2)
+            .map(|v| Slider {
+                vertex: v,
+                on: SlideOn::Rail(0),
+                friction: mu,
+            })
+            .collect();
+        let mut s = State {
+            x: vec![Vector3::zeros(), 0.01 * t],
+            v: vec![t; 2],
+        };
+        let mut integ = Integrator::new(&sys).unwrap();
+        let settings = Settings {
+            method: Method::Linearized,
+            ..settings()
+        };
+        let h = 0.01;
+        for _ in 0..20 {
+            integ.step(&sys, &mut s, None, h, &settings).unwrap();
+        }
+        let want = 1.0 + 20.0 * h * 9.81 * (theta.sin() - mu * theta.cos());
+        for v in &s.v {
+            assert!((v.dot(&t) - want).abs() < 1e-9, "{} want {want}", v.dot(&t));
+        }
     }
 
     #[test]
