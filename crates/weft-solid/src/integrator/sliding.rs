@@ -397,13 +397,9 @@ mod tests {
         )
     }
 
-    #[test]
-    fn a_bead_on_a_tilted_wire_accelerates_at_g_sin_theta() {
-        // Implicit Euler with a constant force along the rail is exact in the velocity:
-        // v_n = n h g sin θ. Two vertices joined by a stiff segment both slide (the rod's
-        // stretch couples the two filtered rows).
-        let theta = 0.3f64;
-        let (rail, t) = tilted(theta);
+    /// Two 10 g vertices joined by a stiff 1 cm segment (k/L = 1e6 N/m), both sliding on
+    /// `rail` with friction `mu`, under gravity −y.
+    fn stiff_pair(rail: Rail, mu: f64) -> SolidSystem {
         let mut sys = SolidSystem::new(vec![0.01, 0.01]);
         sys.gravity = Vector3::new(0.0, -9.81, 0.0);
         sys.elements.stretches.push(RodStretch {
@@ -411,19 +407,25 @@ mod tests {
             rest_length: 0.01,
             k: 1e4,
         });
-        sys.rails.push(rail.clone());
-        sys.sliders = vec![
-            Slider {
-                vertex: 0,
+        sys.rails.push(rail);
+        sys.sliders = (0..2)
+            .map(|v| Slider {
+                vertex: v,
                 on: SlideOn::Rail(0),
-                friction: 0.0,
-            },
-            Slider {
-                vertex: 1,
-                on: SlideOn::Rail(0),
-                friction: 0.0,
-            },
-        ];
+                friction: mu,
+            })
+            .collect();
+        sys
+    }
+
+    #[test]
+    fn a_bead_on_a_tilted_wire_accelerates_at_g_sin_theta() {
+        // Implicit Euler with a constant force along the rail is exact in the velocity:
+        // v_n = n h g sin θ. Two vertices joined by a stiff segment both slide (the rod's
+        // stretch couples the two filtered rows).
+        let theta = 0.3f64;
+        let (rail, t) = tilted(theta);
+        let sys = stiff_pair(rail.clone(), 0.0);
         let mut s = State {
             x: vec![Vector3::zeros(), 0.01 * t],
             v: vec![Vector3::zeros(); 2],
@@ -455,21 +457,7 @@ mod tests {
         // iteration would run without friction, a linearized one must not.
         let (theta, mu) = (0.3f64, 0.2);
         let (rail, t) = tilted(theta);
-        let mut sys = SolidSystem::new(vec![0.01, 0.01]);
-        sys.gravity = Vector3::new(0.0, -9.81, 0.0);
-        sys.elements.stretches.push(RodStretch {
-            v: [0, 1],
-            rest_length: 0.01,
-            k: 1e4,
-        });
-        sys.rails.push(rail);
-        sys.sliders = (0..2)
-            .map(|v| Slider {
-                vertex: v,
-                on: SlideOn::Rail(0),
-                friction: mu,
-            })
-            .collect();
+        let sys = stiff_pair(rail, mu);
         let mut s = State {
             x: vec![Vector3::zeros(), 0.01 * t],
             v: vec![t; 2],
