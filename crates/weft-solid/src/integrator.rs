@@ -1629,7 +1629,8 @@ impl Integrator {
             // Converged: the step still takes this last (small) Newton correction, whole.
             // Stopping before it would leave a step that starts below the tolerance (a
             // body at rest whose first velocity change g·h is below it) where it started.
-            let done = !linearized && res < settings.tolerance;
+            // (Not an iteration that left a slider's friction out: `SlideForces`.)
+            let done = !linearized && res < settings.tolerance && !self.slide_forces.frictionless;
             // Backtracking line search on the objective (Armijo, c = 1e-4).
             // (Not needed when the whole step is taken.)
             // Sliders' friction depends on this iteration's normal forces: a new objective.

@@ -781,7 +781,8 @@ impl Integrator {
                     first,
                 });
             }
-            if step < settings.tolerance && admm_converged {
+            // (Not an iteration that left a slider's friction out: `SlideForces`.)
+            if step < settings.tolerance && admm_converged && !self.slide_forces.frictionless {
                 stats.converged = true;
                 break;
             }

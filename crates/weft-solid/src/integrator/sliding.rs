@@ -21,17 +21,22 @@ use crate::system::SolidSystem;
 /// full step the free rows' imbalance is met and only the model's error, second order in
 /// the step, is left (the multiplier estimate of sequential quadratic programming); a
 /// shortened step leaves (1 − α) of the iterate's. H is the matrix before the filter,
-/// friction, inertia shifts and contact terms: friction and the filter act along the
-/// target (P) and the shifts are isotropic on a node whose step is along it, so none has a
-/// normal part; d is taken along each slider's target (P d), as the retraction leaves it.
-/// Each step starts from the gradient at its first iterate, or without friction for a
-/// stiffly held node (`STIFF_NODE`): nothing is carried from one step to the next, so a
-/// step still depends on its inputs alone (resuming from any checkpoint gives the same
-/// bits). Kept only for sliders with friction in dynamic steps, the only readers.
+/// friction and inertia shifts: friction and the filter act along the target (P) and the
+/// shifts are isotropic on a node whose step is along it, so none has a normal part; d is
+/// taken along each slider's target (P d), as the retraction leaves it (a contact step's
+/// direction has a normal part there: its contact terms act after the filter).
+/// Each step starts from the gradient at its first iterate, or, in a step iterated to its
+/// tolerance, without friction for a stiffly held node (`STIFF_NODE`; that iteration never
+/// ends the step): nothing is carried from one step to the next, so a step still depends
+/// on its inputs alone (resuming from any checkpoint gives the same bits). Kept only for
+/// sliders with friction in dynamic steps (frictionless sliders' stops read the gradient).
+/// In a contact step the contact force on the node is not in the prediction (nor was it in
+/// the gradient read before), and an extrapolated step (α up to 20) extrapolates the
+/// force with it.
 #[derive(Default)]
 pub(super) struct SlideForces {
-    /// Per slider: its node at the last assembly, or NONE (no friction to read it, or no
-    /// node: its vertex pinned).
+    /// Per slider: its node at the last assembly, or NONE (no friction to read it, a static
+    /// step, or no node: its vertex held).
     node: Vec<u32>,
     /// Per slider: the gradient on its node at the last assembly, before the filter and
     /// friction.
@@ -46,6 +51,11 @@ pub(super) struct SlideForces {
     /// Whether a stiffly held node's first iteration may run without friction (not in a
     /// linearized step, whose one iteration is its answer).
     free_first: bool,
+    /// Whether the last assembly left a frictional slider's friction out (its first
+    /// iteration): its step may not end there, below the tolerance or not — a strand at
+    /// rest on a rail tilted by less than tol/(h g) would otherwise take every step
+    /// without friction and slide where it should stick.
+    pub(super) frictionless: bool,
 }
 
 /// How much stiffer than its inertia m/h² a sliding node may be (its diagonal's mean, its
@@ -146,6 +156,7 @@ impl Integrator {
     pub(super) fn start_slide_forces(&mut self, sys: &SolidSystem, iterated: bool) {
         let sf = &mut self.slide_forces;
         sf.free_first = iterated;
+        sf.frictionless = false;
         sf.predicted.clear();
         sf.predicted.resize(sys.sliders.len(), None);
         sf.node.clear();
@@ -231,7 +242,8 @@ impl Integrator {
     /// the block of an SPD matrix). The matrix stays SPD when it was, and its solution moves
     /// sliding vertices along their targets only. In dynamic steps, friction's gradient and
     /// Hessian are added first, with N the normal part of the gradient the Newton model
-    /// predicts at `x` (`SlideForces`; the gradient itself where it has no prediction).
+    /// predicts at `x` (`SlideForces`; where it has no prediction, the gradient itself, or
+    /// zero for a stiffly held node in an iterated step's first iteration).
     pub(super) fn filter_sliders(
         &mut self,
         sys: &SolidSystem,
@@ -245,6 +257,7 @@ impl Integrator {
         self.map_sliders(sys, x);
         let n_sliders = sys.sliders.len();
         let sf = &mut self.slide_forces;
+        sf.frictionless = false;
         sf.node.clear();
         sf.node.resize(n_sliders, NONE);
         sf.grad.resize(n_sliders, Vector3::zeros());
@@ -294,7 +307,10 @@ impl Integrator {
             self.slide_normal[k] = match predicted {
                 _ if held => 0.0,
                 Some(f) => (f - p * f).norm(),
-                None if stiff && sl.friction > 0.0 && self.slide_forces.free_first => 0.0,
+                None if stiff && sl.friction > 0.0 && self.slide_forces.free_first => {
+                    self.slide_forces.frictionless = true;
+                    0.0
+                }
                 None => (g - p * g).norm(),
             };
             let (Mode::Dynamic { h }, true) = (mode, sl.friction > 0.0 && !held) else {
