@@ -464,9 +464,11 @@ fn a_strand_hanging_from_a_sliding_root_slides_by_coulomb_as_a_whole() {
         assert!(to_polyline(root, &ends) < 1e-9);
         let want = euler_distance(a, h, 2.0 * frame as f64);
         let s = dot(root, t);
-        // Newton's tolerance of 1e-4 m/s over the run's 48 steps of h: 1e-4 m at most
-        // (measured 8.8e-5 m at frame 24: each step's first iteration runs without
-        // friction, `STIFF_NODE`, and its loop stops within the tolerance on that side).
+        // Each step's velocity is within Newton's tolerance of 1e-4 m/s; a one-sided error
+        // adds up through the velocity to as much as h·tol·n²/2 = 2.4e-3 m over the 48
+        // steps, and the bound asks 24× less (measured 8.8e-5 m at frame 24: each step's
+        // first iteration runs without friction, `STIFF_NODE`, and its loop stops within
+        // the tolerance on that side).
         assert!(
             (s - want).abs() < 1e-4,
             "frame {frame}: root {s} m along the wire, want {want}"

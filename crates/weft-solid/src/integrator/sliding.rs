@@ -298,16 +298,16 @@ impl Integrator {
             // imbalance at the first guess (a swinging strand's root: 1.84 N where the strand
             // weighs 0.04 N) and the first iteration of an iterated step runs without
             // friction.
-            let stiff = match mode {
+            let stiff = |s: &Self| match mode {
                 Mode::Dynamic { h } => {
-                    self.slide_scale[k] > STIFF_NODE * self.node_mass(sys, v) / (h * h)
+                    s.slide_scale[k] > STIFF_NODE * s.node_mass(sys, v) / (h * h)
                 }
                 Mode::Static => false,
             };
             self.slide_normal[k] = match predicted {
                 _ if held => 0.0,
                 Some(f) => (f - p * f).norm(),
-                None if stiff && sl.friction > 0.0 && self.slide_forces.free_first => {
+                None if sl.friction > 0.0 && self.slide_forces.free_first && stiff(self) => {
                     self.slide_forces.frictionless = true;
                     0.0
                 }
