@@ -1565,6 +1565,7 @@ impl Integrator {
         // The inertia that last made the exact Hessian positive definite in this step.
         let mut last_shift = 0.0;
         let mut rate = rate::RateStop::default();
+        let mut friction_rate = rate::RateStop::default();
         // Membranes carry their stress (the mixed form) where the first tries are exact.
         let carry = matches!(mode, Mode::Dynamic { .. }) && settings.method == Method::Newton;
         self.start_carried(sys, x0, carry);
@@ -1723,21 +1724,16 @@ impl Integrator {
             // steps (`rate.rs`), are below the tolerance: with the first Hessians only
             // (exact where cheap, membranes' tension carried — the mixed form's Newton —,
             // midedge bending's Gauss–Newton term; unshifted), whose
-            // convergence is superlinear. A shifted direction is not Newton's, projected
+            // convergence is superlinear. A shifted direction is not Newton's, and projected
             // Hessians converge linearly at a rate that can worsen as the fast modes die
             // out (projected Newton on cloth_hang: 13.42 → 10.56 iterations a step with
-            // them, 1.9 → 2.9 cm off the converged run where it buckles), and sliders'
-            // friction, lagged a normal force behind, makes the loop a fixed-point iteration
-            // (even with the model's normal force, `SlideForces`, carried from step to step as
-            // first written: a swinging strand whose root slides with friction, μ = 0.05,
-            // ended 4.1e-4 m from its converged run with it, 2.4e-6 m without, at 1e-4 m/s;
-            // curtain_rail 5.73 iterations a step either way).
-            let full = alpha == 1.0
-                && stats.corrections == corrections
-                && first == Some(false)
-                && !Self::slide_friction(sys);
+            // them, 1.9 → 2.9 cm off the converged run where it buckles). Sliders'
+            // friction, lagged a normal force behind, is a fixed-point iteration of its own:
+            // its normal forces' changes must contract too (`friction_rate`).
+            let full = alpha == 1.0 && stats.corrections == corrections && first == Some(false);
+            let budget = self.friction_budget(sys, &mut friction_rate, full, settings);
             if matches!(mode, Mode::Dynamic { .. })
-                && rate.ends(&mut stats, res, full, settings.tolerance)
+                && rate.ends_within(budget, &mut stats, res, full)
             {
                 break;
             }

@@ -460,6 +460,7 @@ impl Integrator {
         let mut stalled = 0;
         // The stopping test by the full steps' rate (`rate.rs`).
         let mut rate = super::rate::RateStop::default();
+        let mut friction_rate = super::rate::RateStop::default();
         // The last full steps, to sum a geometric tail (`tail.rs`).
         let mut tail = Tail::default();
         if self.tails {
@@ -796,7 +797,10 @@ impl Integrator {
             // loop's rate stop as well): hair_on_head 9.98 → 8.70, hair_pile 9.59 → 7.72,
             // cloth_drape 10.55 → 9.81, cloth_pile 10.28 → 8.88.
             let full = alpha == 1.0 && admm_converged && stats.corrections == corrections;
-            if rate.ends(&mut stats, step, full, settings.tolerance) {
+            // Sliders' lagged friction settled too, their tail within the tolerance with
+            // the steps' (`friction_budget`).
+            let budget = self.friction_budget(sys, &mut friction_rate, full, settings);
+            if rate.ends_within(budget, &mut stats, step, full) {
                 break;
             }
             stalled = if step < settings.tolerance {

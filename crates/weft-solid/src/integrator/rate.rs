@@ -11,7 +11,9 @@
 //! runs end closer to a converged one, by the amounts below). The contraction holds where
 //! convergence is superlinear, so the contact-free loop counts only steps with its first
 //! Hessians, unshifted (projected ones converge linearly at a rate that worsens as the fast
-//! modes die out; sliders' lagged friction makes a fixed-point iteration). The contact
+//! modes die out), and where sliders have friction, which lags the normal force an
+//! iteration behind (a fixed-point iteration of its own), only once the normal forces'
+//! changes contract by the same test (`Integrator::friction_budget`). The contact
 //! step's model is partly bounded and may converge linearly (`tail.rs`); it counts steps
 //! whose ADMM converged, and the bound q < ½ keeps out the slow tails (ratios 0.81–0.92).
 //!
@@ -54,16 +56,18 @@ impl RateStop {
         estimate.filter(|&e| e < tolerance)
     }
 
-    /// [`Self::done`], recorded in `stats` (converged, counted, its estimate kept) when the
-    /// loop is to end.
-    pub(super) fn ends(
+    /// [`Self::done`] against `budget`, the tolerance left to this estimate (None: the loop
+    /// may not end by its rate now, such as while sliders' lagged friction has not settled),
+    /// recorded in `stats` (converged, counted, its estimate kept) when the loop is to end.
+    /// The residual is recorded either way.
+    pub(super) fn ends_within(
         &mut self,
+        budget: Option<f64>,
         stats: &mut StepStats,
         res: f64,
         full: bool,
-        tolerance: f64,
     ) -> bool {
-        let Some(estimate) = self.done(res, full, tolerance) else {
+        let Some(estimate) = self.done(res, full, budget.unwrap_or(f64::NEG_INFINITY)) else {
             return false;
         };
         stats.converged = true;
