@@ -516,7 +516,7 @@ fn a_swinging_strand_whose_root_slides_with_friction_converges_at_the_default_to
         // A velocity error of the tolerance over the run's second: the tolerance in metres
         // (root and tip measured 3.2e-4 and 5.0e-4 m at 1e-3, 8.1e-5 and 5.6e-5 m at 1e-4,
         // with the loop's rate stop once friction's normal forces settle; 2.3e-4 and 3.6e-5
-        // m for the root without it; with the Newton steps' test alone, 2.9e-3 m at 1e-3).
+        // m for the root without it; with the Newton steps' test alone, 2.8e-3 m at 1e-3).
         for (got, want) in [(r, root), (t, tip)] {
             let d = dist(got, want);
             assert!(
