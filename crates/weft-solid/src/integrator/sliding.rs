@@ -63,7 +63,7 @@ pub(super) struct SlideForces {
     used: Vec<f64>,
     /// The largest change of a frictional slider's normal force from the last iteration's
     /// to this one's, as the velocity μ ΔN h / m it makes on its node (NaN in a step's first
-    /// iteration).
+    /// iteration and after one that left friction out; zero with no frictional slider).
     pub(super) change: f64,
 }
 
@@ -180,7 +180,13 @@ impl Integrator {
     pub(super) fn predict_slide_forces(&mut self, dir: &[f64], alpha: f64) {
         let sf = &mut self.slide_forces;
         sf.used.clear();
-        sf.used.extend_from_slice(&self.slide_normal);
+        if sf.frictionless {
+            // An iteration that left friction out is no term of the fixed-point iteration on
+            // the normal forces: the next change is measured from none.
+            sf.used.resize(self.slide_normal.len(), f64::NAN);
+        } else {
+            sf.used.extend_from_slice(&self.slide_normal);
+        }
         for (k, &f) in sf.node.iter().enumerate() {
             if f == NONE {
                 sf.predicted[k] = None;
@@ -226,10 +232,11 @@ impl Integrator {
     /// together stay below the tolerance. Friction reads the normal force the last step
     /// predicted, so the loop is also a fixed-point iteration on N, whose contraction the
     /// Newton steps' ratio does not show: on a strand whose stiffly held root slides with
-    /// friction (μ = 0.05, 1e-4 m/s), the Newton steps' test alone ended 2.6e-4 m from the
-    /// converged run, where the measured test ends 1.5e-6 m from it and this one 4.8e-6 m
-    /// (5.90 → 5.75 Newton iterations a step); curtain_rail's rings 5.12 → 4.56 a step,
-    /// 8.75e-6 → 8.74e-6 m from its run at 1e-8 m/s.
+    /// friction (μ = 0.05, 1e-4 m/s), the Newton steps' test alone ended 2.4e-4 m from the
+    /// converged run, where the measured test ends 1.5e-6 m from it and this one 3.0e-6 m
+    /// (5.90 → 5.85 Newton iterations a step; the sequence starts after a first iteration
+    /// without friction, whose normal force of zero is no term of it); curtain_rail's rings
+    /// 5.12 → 4.56 a step, 8.75e-6 → 8.74e-6 m from its run at 1e-8 m/s.
     pub(super) fn friction_budget(
         &self,
         sys: &SolidSystem,
@@ -240,9 +247,14 @@ impl Integrator {
         if !Self::slide_friction(sys) {
             return Some(settings.tolerance);
         }
-        friction_rate
-            .done(self.slide_forces.change, full, settings.tolerance)
-            .map(|e| settings.tolerance - e)
+        let change = self.slide_forces.change;
+        let tail = friction_rate.done(change, full, settings.tolerance);
+        // No change at all (every frictional slider held at a stop, or its force unchanged):
+        // nothing lags, though the ratio of two zeros is no contraction.
+        if change == 0.0 {
+            return Some(settings.tolerance);
+        }
+        tail.map(|e| settings.tolerance - e)
     }
 
     /// Whether any slider has friction (its potential then changes with the iterate's normal
@@ -356,10 +368,9 @@ impl Integrator {
                 }
                 None => (g - p * g).norm(),
             };
-            let (Mode::Dynamic { h }, true) = (mode, sl.friction > 0.0 && !held) else {
-                continue;
-            };
-            {
+            // Friction's change from the last iteration's normal force, held sliders included
+            // (their friction switching off is a change too).
+            if let (Mode::Dynamic { h }, true) = (mode, sl.friction > 0.0) {
                 let d = sl.friction * (self.slide_normal[k] - self.slide_forces.used[k]).abs() * h
                     / self.node_mass(sys, v);
                 let c = &mut self.slide_forces.change;
@@ -369,6 +380,9 @@ impl Integrator {
                     c.max(d)
                 };
             }
+            let (Mode::Dynamic { h }, true) = (mode, sl.friction > 0.0 && !held) else {
+                continue;
+            };
             // μ N f₀(|u|), u = P (x − x⁰): gradient μN f₁/y u; Hessian
             // μN [f₁/y (P − û ûᵀ) + f₁′ û ûᵀ], both terms PSD (f₁′ = 0 beyond ε).
             let mu_n = sl.friction * self.slide_normal[k];
