@@ -1647,7 +1647,14 @@ impl Integrator {
                     x.iter().fold(0.0f64, |m, p| m.max(p.amax())),
                 )
             };
-            let mut alpha = 1.0;
+            // Short of a frictional slider's stick point, where friction's potential has its
+            // kink (`stick_cap`).
+            let mut alpha = match mode {
+                Mode::Dynamic { h } if !linearized && !done && Self::slide_friction(sys) => {
+                    self.stick_cap(sys, x, x0, &self.dir, h)
+                }
+                _ => 1.0,
+            };
             e_at_x = None;
             let corrections = stats.corrections;
             loop {

@@ -702,6 +702,13 @@ impl Integrator {
                 // A NaN cap (a NaN reach, or 0/0) allows no extrapolation.
                 stretch = if cap >= 1.0 { stretch.min(cap) } else { 1.0 };
             }
+            // Short of a frictional slider's stick point (`stick_cap`), not extrapolated.
+            if Self::slide_friction(sys) {
+                let cap = self.stick_cap(sys, &x, &x0, &delta, h);
+                if cap < 1.0 {
+                    stretch = cap;
+                }
+            }
             let mut trial = x.clone();
             let mut alpha = stretch;
             let corrections = stats.corrections;
