@@ -264,7 +264,7 @@ impl Integrator {
     /// there: beyond ε its model has no stiffness along the motion, so a step that reverses
     /// the motion overshoots the stick point and the line search halves it across the
     /// kink (a strand hanging still from a stiff root on a tilted wire, its first iteration
-    /// run without friction: 6, 13, 22 and 32 halvings in one step's iterations). Stopped
+    /// run without friction: 6, 7, 9 and 10 halvings in one step's iterations). Stopped
     /// there, the next iteration starts in the mollified zone, whose model holds it.
     pub(super) fn stick_cap(
         &self,
