@@ -620,8 +620,9 @@ fn a_strand_below_its_friction_angle_stays_put_though_its_first_iterations_are_f
     // Each step: the frictionless iteration slides the root 4e-5 m, past the mollifier's
     // ε_v h = 2e-6 m; friction's first model pulls it back, stopped at the stick point
     // (`stick_cap`) instead of across it; the next model, in the mollified zone, holds it.
-    // Three Newton iterations a step at most (without the stop, the line search halved the
-    // reversing steps 6 to 32 times and steps took up to 6).
+    // Three Newton iterations a step at most (without the stop the line search halved the
+    // reversing steps 6 to 10 times an iteration, and steps took up to 5 at this tolerance,
+    // 6 at 1e-4).
     let report = g.node_report("solve").expect("the solver's report");
     for f in report["solid_frames"].as_array().unwrap() {
         let most = f["max_newton_iterations"].as_u64().unwrap();

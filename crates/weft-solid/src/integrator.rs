@@ -1566,6 +1566,8 @@ impl Integrator {
         let mut last_shift = 0.0;
         let mut rate = rate::RateStop::default();
         let mut friction_rate = rate::RateStop::default();
+        // Whether a step of this loop stopped at a slider's stick point (`stick_cap`).
+        let mut stuck = false;
         // Membranes carry their stress (the mixed form) where the first tries are exact.
         let carry = matches!(mode, Mode::Dynamic { .. }) && settings.method == Method::Newton;
         self.start_carried(sys, x0, carry);
@@ -1647,14 +1649,18 @@ impl Integrator {
                     x.iter().fold(0.0f64, |m, p| m.max(p.amax())),
                 )
             };
-            // Short of a frictional slider's stick point, where friction's potential has its
-            // kink (`stick_cap`).
+            // Stopped at a frictional slider's stick point, where friction's potential has
+            // its kink (`stick_cap`), once a step: several sliders reversing at different
+            // fractions are then left to the line search rather than taking a cut each.
             let mut alpha = match mode {
-                Mode::Dynamic { h } if !linearized && !done && Self::slide_friction(sys) => {
-                    self.stick_cap(sys, x, x0, &self.dir, h)
+                Mode::Dynamic { h }
+                    if !linearized && !done && !stuck && Self::slide_friction(sys) =>
+                {
+                    self.stick_cap(sys, x, x0, &self.dir, h, 1.0)
                 }
                 _ => 1.0,
             };
+            stuck |= alpha < 1.0;
             e_at_x = None;
             let corrections = stats.corrections;
             loop {

@@ -461,6 +461,8 @@ impl Integrator {
         // The stopping test by the full steps' rate (`rate.rs`).
         let mut rate = super::rate::RateStop::default();
         let mut friction_rate = super::rate::RateStop::default();
+        // Whether a step of this loop stopped at a slider's stick point (`stick_cap`).
+        let mut stuck = false;
         // The last full steps, to sum a geometric tail (`tail.rs`).
         let mut tail = Tail::default();
         if self.tails {
@@ -702,13 +704,15 @@ impl Integrator {
                 // A NaN cap (a NaN reach, or 0/0) allows no extrapolation.
                 stretch = if cap >= 1.0 { stretch.min(cap) } else { 1.0 };
             }
-            // Short of a frictional slider's stick point (`stick_cap`), not extrapolated.
-            if Self::slide_friction(sys) {
-                let cap = self.stick_cap(sys, &x, &x0, &delta, h);
-                if cap < 1.0 {
-                    stretch = cap;
-                }
-            }
+            // Stopped at a frictional slider's stick point (`stick_cap`), once a step, the
+            // extrapolation included. Such a step is short by construction: it ends no loop.
+            let capped = !stuck && Self::slide_friction(sys) && {
+                let cap = self.stick_cap(sys, &x, &x0, &delta, h, stretch);
+                let cut = cap < stretch;
+                stretch = cap;
+                cut
+            };
+            stuck |= capped;
             let mut trial = x.clone();
             let mut alpha = stretch;
             let corrections = stats.corrections;
@@ -789,8 +793,13 @@ impl Integrator {
                     first,
                 });
             }
-            // (Not an iteration that left a slider's friction out: `SlideForces`.)
-            if step < settings.tolerance && admm_converged && !self.slide_forces.frictionless {
+            // (Not an iteration that left a slider's friction out, `SlideForces`, nor one cut at a
+            // stick point, `stick_cap`.)
+            if step < settings.tolerance
+                && admm_converged
+                && !self.slide_forces.frictionless
+                && !capped
+            {
                 stats.converged = true;
                 break;
             }
@@ -810,7 +819,7 @@ impl Integrator {
             if rate.ends_within(budget, &mut stats, step, full) {
                 break;
             }
-            stalled = if step < settings.tolerance {
+            stalled = if step < settings.tolerance && !capped {
                 stalled + 1
             } else {
                 0

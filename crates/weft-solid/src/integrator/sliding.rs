@@ -257,15 +257,19 @@ impl Integrator {
         tail.map(|e| settings.tolerance - e)
     }
 
-    /// The largest fraction (at most 1) of the step `dir` from `x` that keeps every sliding
-    /// frictional slider short of its stick point: where the ray u + α P d of a slider's
-    /// displacement this step, u = P (x − x⁰), passes within the mollifier's ε of zero, the
-    /// fraction at its closest approach. Friction's potential μN f₀(|u|) has its kink
-    /// there: beyond ε its model has no stiffness along the motion, so a step that reverses
-    /// the motion overshoots the stick point and the line search halves it across the
-    /// kink (a strand hanging still from a stiff root on a tilted wire, its first iteration
-    /// run without friction: 6, 7, 9 and 10 halvings in one step's iterations). Stopped
-    /// there, the next iteration starts in the mollified zone, whose model holds it.
+    /// The fraction (at most `max`) of the step `dir` from `x` at which it stops for a
+    /// frictional slider's stick point, or `max`: for each slider with friction, sliding
+    /// (its displacement this step, u = P (x − x⁰), beyond the mollifier's ε), the ray
+    /// u + α P d (d the step on its node) is followed to its closest approach to zero, and
+    /// where that passes within ε/2 of it the step stops there (the smallest such α over
+    /// the sliders). Friction's potential μN f₀(|u|) has its kink at zero: beyond ε its model
+    /// has no stiffness along the motion, so a step that reverses the motion overshoots the
+    /// stick point and the line search halves it across the kink (a strand hanging still from
+    /// a stiff root on a tilted wire, its first iteration run without friction: 6, 7, 9 and
+    /// 10 halvings in one step's iterations). Stopped there, the next iteration starts in the
+    /// mollified zone (within ε/2, where its model's stiffness along the motion is at least
+    /// μN/ε), whose model holds it. Both Newton loops use it, once a step (`newton`,
+    /// `step_contacts_here`).
     pub(super) fn stick_cap(
         &self,
         sys: &SolidSystem,
@@ -273,9 +277,10 @@ impl Integrator {
         x0: &[Vector3<f64>],
         dir: &[f64],
         h: f64,
+        max: f64,
     ) -> f64 {
         let eps = FRICTION_EPS_V * h;
-        let mut cap = 1.0f64;
+        let mut cap = max;
         for (k, sl) in sys.sliders.iter().enumerate() {
             let n = self.slide_normal.get(k).copied().unwrap_or(0.0);
             if sl.friction <= 0.0 || n.is_nan() || n <= 0.0 {
@@ -295,7 +300,7 @@ impl Integrator {
                 continue;
             }
             let a = -u.dot(&d) / dd;
-            if a > 0.0 && a < cap && (u + a * d).norm() <= eps {
+            if a > 0.0 && a < cap && (u + a * d).norm() <= 0.5 * eps {
                 cap = a;
             }
         }
