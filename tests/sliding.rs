@@ -579,7 +579,8 @@ fn a_strand_sliding_with_friction_resumes_from_a_checkpoint_bit_for_bit() {
         let reference: Vec<[u64; 3]> = (0..=8).map(|f| bits(&mut seq, f)).collect();
         assert_ne!(reference[0], reference[8], "the strand moved");
         if ball.is_some() {
-            // It reached the sphere after frame 3: the resumed steps run the contact loop.
+            // In contact in frames 4–8, after the checkpoint at 3 (measured: 3–8): the resumed
+            // steps run the contact loop.
             let touching = touching_frames(&seq);
             assert!(
                 touching.iter().any(|&f| (4..=8).contains(&f)),
@@ -624,7 +625,9 @@ fn a_strand_below_its_friction_angle_stays_put_though_its_first_iterations_are_f
     // reversing steps 6 to 10 times an iteration, and steps took up to 5 at this tolerance,
     // 6 at 1e-4).
     let report = g.node_report("solve").expect("the solver's report");
-    for f in report["solid_frames"].as_array().unwrap() {
+    let frames = report["solid_frames"].as_array().unwrap();
+    assert_eq!(frames.len(), 24, "frames reported");
+    for f in frames {
         let most = f["max_newton_iterations"].as_u64().unwrap();
         assert!(
             most <= 3,

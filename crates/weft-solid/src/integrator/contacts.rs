@@ -705,7 +705,8 @@ impl Integrator {
                 stretch = if cap >= 1.0 { stretch.min(cap) } else { 1.0 };
             }
             // Stopped at a frictional slider's stick point (`stick_cap`), once a step, the
-            // extrapolation included. Such a step is short by construction: it ends no loop.
+            // extrapolation included. Such a step is short by construction: it ends no loop,
+            // by its size or by the rate (its halvings may bring α back to 1).
             let capped = !stuck && Self::slide_friction(sys) && {
                 let cap = self.stick_cap(sys, &x, &x0, &delta, h, stretch);
                 let cut = cap < stretch;
@@ -812,7 +813,8 @@ impl Integrator {
             // Measured (ensembles of 8, Newton iterations a step, with the contact-free
             // loop's rate stop as well): hair_on_head 9.98 → 8.70, hair_pile 9.59 → 7.72,
             // cloth_drape 10.55 → 9.81, cloth_pile 10.28 → 8.88.
-            let full = alpha == 1.0 && admm_converged && stats.corrections == corrections;
+            let full =
+                alpha == 1.0 && admm_converged && stats.corrections == corrections && !capped;
             // Sliders' lagged friction settled too, their tail within the tolerance with
             // the steps' (`friction_budget`).
             let budget = self.friction_budget(sys, &mut friction_rate, full, settings);

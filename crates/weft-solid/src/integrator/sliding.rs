@@ -70,8 +70,9 @@ pub(super) struct SlideForces {
 /// How much stiffer than its inertia m/h² a sliding node may be (its diagonal's mean, its
 /// neighbours' stiffness included) and still have the normal force of a step's first
 /// iteration read from the gradient at the first guess, whose error is the position
-/// error times that stiffness. Measured: curtain_rail's rings 87–136 (from the gradient:
-/// 5.83 Newton iterations a step, 6.38 without friction in the first iteration), a strand
+/// error times that stiffness. Measured in the thirty-fifth session: curtain_rail's rings
+/// 87–136 (from the gradient: 5.83 Newton iterations a step, 6.38 without friction in the
+/// first iteration), a strand
 /// root 9.7e4 (from the gradient 16.2–19.7 iterations a step, without friction 5.90–6.52).
 const STIFF_NODE: f64 = 1e3;
 
