@@ -113,7 +113,36 @@ const SHIFT_TRIES: usize = 4;
 /// `bench/peers` at 16², 874, 677, 146 → 881, 621, 126. Carried from one step to the next
 /// it cost the square 23–50 % more iterations at fractions 0.2–0.5 and cloth_hang 77 % at 1
 /// (the shifted directions are shorter), and a step would depend on the steps before it.
+/// A restart that fails climbs back to that last inertia before growing 5× a try
+/// ([`shift_ladder`]).
 const SHIFT_RESTART: f64 = 0.5;
+
+/// The inertia each try of one iteration adds (fractions of mᵢ/h², summed over the tries),
+/// given `last`, the total that last made the exact Hessian positive definite in this step
+/// (0: none yet). From nothing: 0.01, then 5× the last increment ([`SHIFT_TRIES`] tries:
+/// totals 0.01, 0.06, 0.31, 1.56). From `last`: its [`SHIFT_RESTART`] fraction first, then
+/// back to `last` itself, then 5× the last increment (one try more: totals ½L, L, 3.5L, 16L,
+/// 78.5L). Growing 5× straight from ½L (totals ½L, 3L, 15.5L, 78L) left a failed restart
+/// 3× above the inertia that had just worked: where a sheet buckles (the 128² sheet of
+/// `bench/sheet_graph.py`, its fourth frame) the totals then rose and fell 4.7, 2.3, 7.0,
+/// 3.5, 1.8, 5.3, … m/h² over 18 iterations, each direction too short. Measured (Newton
+/// iterations a step, factorizations): that sheet 6.83, 67 → 6.00, 58 over 6 frames;
+/// cloth_hang 6.17, 376 → 6.06, 370; cloth_release 3.96, 299 → 3.83, 292; curtain_rail
+/// and buttoned_panel unchanged.
+fn shift_ladder(last: f64) -> impl Iterator<Item = f64> {
+    let start = (SHIFT_RESTART * last).max(FIRST_SHIFT);
+    let back = (start < last).then_some(last - start);
+    let tries = SHIFT_TRIES + usize::from(back.is_some());
+    let mut next = start;
+    (0..tries).map(move |k| {
+        let inc = next;
+        next = match (k, back) {
+            (0, Some(b)) => b,
+            _ => 5.0 * inc,
+        };
+        inc
+    })
+}
 
 /// The fraction α of each vertex's inertia mᵢ/h² that a contact step's membranes may spend
 /// on their negative curvature ([`Integrator::fill_budget`]; the rest keeps the model
@@ -1134,9 +1163,8 @@ impl Integrator {
         if self.try_factor(stats) && self.solve_direction(stats) {
             return Some(false);
         }
-        let mut kappa = (SHIFT_RESTART * *last_shift).max(FIRST_SHIFT);
         let mut added = 0.0;
-        for _ in 0..SHIFT_TRIES {
+        for kappa in shift_ladder(*last_shift) {
             self.shift_inertia(sys, h, kappa);
             added += kappa;
             stats.shifted += 1;
@@ -1144,7 +1172,6 @@ impl Integrator {
                 *last_shift = added;
                 return Some(true);
             }
-            kappa *= 5.0;
         }
         None
     }
@@ -1879,6 +1906,36 @@ unsafe fn scatter(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The inertia ladder's totals: 5× steps from nothing; from a last shift L, ½L, then L
+    /// again, then 5× the last increment.
+    #[test]
+    fn the_inertia_ladder_climbs_back_to_the_last_shift_before_growing() {
+        let totals = |last: f64| -> Vec<f64> {
+            shift_ladder(last)
+                .scan(0.0, |t, k| {
+                    *t += k;
+                    Some(*t)
+                })
+                .collect()
+        };
+        let close = |a: &[f64], b: &[f64]| {
+            a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-12 * y)
+        };
+        let fresh = totals(0.0);
+        assert!(close(&fresh, &[0.01, 0.06, 0.31, 1.56]), "{fresh:?}");
+        let restart = totals(1.56);
+        let want: Vec<f64> = [0.5, 1.0, 3.5, 16.0, 78.5]
+            .iter()
+            .map(|f| f * 1.56)
+            .collect();
+        assert!(close(&restart, &want), "{restart:?}");
+        // ½L below the first shift: from the first shift, back to L, then 5× the increment.
+        let low = totals(0.015);
+        assert!(close(&low, &[0.01, 0.015, 0.04, 0.165, 0.79]), "{low:?}");
+        // L at the first shift: nothing to climb back to.
+        assert!(close(&totals(0.01), &fresh));
+    }
 
     /// One memory limit holds for H's factor and its preconditioners together: with room for
     /// H's factor and half its single-precision twin, the twin (which alone would fit) is
