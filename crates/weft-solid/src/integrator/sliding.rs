@@ -747,6 +747,99 @@ mod tests {
         assert!(e.contains("already slides"), "{e}");
     }
 
+    /// The plane z = 0, unbounded.
+    #[derive(Debug)]
+    struct Floor;
+
+    impl crate::slide::Surface for Floor {
+        fn closest(&self, p: &Vector3<f64>) -> Option<crate::slide::OnSurface> {
+            Some(crate::slide::OnSurface {
+                point: Vector3::new(p.x, p.y, 0.0),
+                normal: Vector3::z(),
+                border: None,
+            })
+        }
+    }
+
+    #[test]
+    fn a_step_stops_at_the_stick_point_of_a_surface_slider_or_a_sliding_ring() {
+        // Vertex 0 slides on the floor; the two-vertex ring {1, 2} slides by its centroid on
+        // a rail along x (`stick_cap` follows the group's translation node). Both have
+        // friction and press on their targets. Over this step so far each slid by u (far
+        // beyond the mollifier's ε = ε_v h = 1e-6 m); the step's direction d reverses it.
+        // The cap is the first α at which some u + α P d passes within ε/2 of zero.
+        use crate::slide::{SlideOn, Slider};
+        use nalgebra::Matrix3;
+        let mut sys = SolidSystem::new(vec![0.01, 0.01, 0.01]);
+        sys.rigid.push(crate::RigidGroup {
+            vertices: vec![1, 2],
+        });
+        sys.surfaces.push(std::sync::Arc::new(Floor));
+        sys.rails.push(Rail {
+            points: vec![Vector3::new(-1.0, 0.0, 0.0), Vector3::new(1.0, 0.0, 0.0)],
+        });
+        let slider = |vertex, on, friction| Slider {
+            vertex,
+            on,
+            friction,
+        };
+        sys.sliders = vec![
+            slider(0, SlideOn::Surface(0), 0.3),
+            slider(1, SlideOn::Rail(0), 0.3),
+        ];
+        let x0 = vec![
+            Vector3::zeros(),
+            Vector3::new(0.0, 0.0, 0.01),
+            Vector3::new(0.0, 0.0, -0.01),
+        ];
+        let (u0, u1) = (Vector3::new(2e-3, 1e-3, 0.0), Vector3::new(3e-3, 0.0, 0.0));
+        let x = vec![x0[0] + u0, x0[1] + u1, x0[2] + u1];
+        let h = 0.01;
+        let mut integ = Integrator::new(&sys).unwrap();
+        integ.slide_normal = vec![1.0, 1.0];
+        integ.slide_proj = vec![
+            Matrix3::identity() - Vector3::z() * Vector3::z().transpose(),
+            Vector3::x() * Vector3::x().transpose(),
+        ];
+        let (f0, _) = integ.slider_node(&sys, &x, 0).unwrap();
+        let (f1, c) = integ.slider_node(&sys, &x, 1).unwrap();
+        assert!((c - u1).norm() < 1e-15, "the ring's centroid slides: {c:?}");
+        // The floor's slider back through its stick point at α = 0.4 (its normal part is
+        // projected out), the ring's at α = `ring`.
+        let n = integ.dir.len();
+        let dir = |ring: f64, miss: f64| {
+            let mut d = vec![0.0; n];
+            let d0 = -u0 / 0.4 + Vector3::new(0.0, miss, 5.0);
+            let d1 = -u1 / ring + Vector3::new(0.0, 0.2, 0.1);
+            d[3 * f0..3 * f0 + 3].copy_from_slice(d0.as_slice());
+            d[3 * f1..3 * f1 + 3].copy_from_slice(d1.as_slice());
+            d
+        };
+        let cap = |integ: &Integrator, sys: &SolidSystem, d: &[f64], max: f64| {
+            integ.stick_cap(sys, &x, &x0, d, h, max)
+        };
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-12;
+        // The earlier of the two.
+        assert!(close(cap(&integ, &sys, &dir(0.25, 0.0), 1.0), 0.25));
+        assert!(close(cap(&integ, &sys, &dir(0.7, 0.0), 1.0), 0.4));
+        // Never beyond `max` (an extrapolated step's stretch is the caller's bound).
+        assert!(close(cap(&integ, &sys, &dir(0.7, 0.0), 0.3), 0.3));
+        // A surface slider's ray that passes its stick point 0.7 mm wide (at α = 0.3) is not
+        // stopped there (P d keeps a tangential part that u lacks); the ring reversing after
+        // α = 1: no cap.
+        assert!(close(cap(&integ, &sys, &dir(1.5, -2.5e-3), 1.0), 1.0));
+        // Passing 0.4 µm wide, within ε/2: still stopped, at the ray's closest approach
+        // (its extra tangential part moves that by 3e-5 of the step).
+        let a = cap(&integ, &sys, &dir(0.7, -1e-6), 1.0);
+        assert!((a - 0.4).abs() < 1e-4, "{a}");
+        // A slider not pressed on its target (no normal force) has no friction to stop at;
+        // nor one without friction.
+        integ.slide_normal = vec![0.0, 1.0];
+        assert!(close(cap(&integ, &sys, &dir(0.7, 0.0), 1.0), 0.7));
+        sys.sliders[1].friction = 0.0;
+        assert!(close(cap(&integ, &sys, &dir(0.7, 0.0), 1.0), 1.0));
+    }
+
     #[test]
     fn bad_sliders_are_refused_by_name() {
         let mut sys = SolidSystem::new(vec![1.0]);
