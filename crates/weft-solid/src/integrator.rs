@@ -98,7 +98,7 @@ enum Hessians {
 
 /// Inertia added, as a fraction of mᵢ/h² per vertex, the first time an exact Hessian is not
 /// positive definite; each retry adds 5× the last (in all 0.01, 0.06, 0.31, 1.56),
-/// [`SHIFT_TRIES`] times, before the projected
+/// [`SHIFT_TRIES`] tries (one more after a restart, [`shift_ladder`]), before the projected
 /// Hessians are used instead. Measured on the hanging cloth (24 frames): from 0.01, 8.8
 /// Newton iterations a step (at most 17); going straight to the projected Hessians, 9.4 (at
 /// most 49: projected steps stagnate where the cloth buckles).
@@ -120,9 +120,11 @@ const SHIFT_RESTART: f64 = 0.5;
 /// The inertia each try of one iteration adds (fractions of mᵢ/h², summed over the tries),
 /// given `last`, the total that last made the exact Hessian positive definite in this step
 /// (0: none yet). From nothing: 0.01, then 5× the last increment ([`SHIFT_TRIES`] tries:
-/// totals 0.01, 0.06, 0.31, 1.56). From `last`: its [`SHIFT_RESTART`] fraction first, then
-/// back to `last` itself, then 5× the last increment (one try more: totals ½L, L, 3.5L, 16L,
-/// 78.5L). Growing 5× straight from ½L (totals ½L, 3L, 15.5L, 78L) left a failed restart
+/// totals 0.01, 0.06, 0.31, 1.56). From `last` = L above 0.01: its [`SHIFT_RESTART`]
+/// fraction first (at least 0.01), then back to L itself, then increments growing 5× from
+/// the larger of the first two (one try more: totals ½L, L, 3.5L, 16L, 78.5L for L ≥ 0.02;
+/// 0.01, L, L + 0.05, L + 0.30, L + 1.55 below, so the ceiling never falls under the fresh
+/// ladder's). Growing 5× straight from ½L (totals ½L, 3L, 15.5L, 78L) left a failed restart
 /// 3× above the inertia that had just worked: where a sheet buckles (the 128² sheet of
 /// `bench/sheet_graph.py`, its fourth frame) the totals then rose and fell 4.7, 2.3, 7.0,
 /// 3.5, 1.8, 5.3, … m/h² over 18 iterations, each direction too short. Measured (Newton
@@ -138,6 +140,8 @@ fn shift_ladder(last: f64) -> impl Iterator<Item = f64> {
         let inc = next;
         next = match (k, back) {
             (0, Some(b)) => b,
+            // After the climb back: 5× the larger step, not 5× a climb of less than 0.01.
+            (1, Some(b)) => 5.0 * b.max(start),
             _ => 5.0 * inc,
         };
         inc
@@ -1149,7 +1153,7 @@ impl Integrator {
     }
 
     /// Factorizes `values` (assembled with [`Hessians::First`]) and solves for the direction,
-    /// adding inertia up to [`SHIFT_TRIES`] times while it is not positive definite (its
+    /// adding inertia ([`shift_ladder`]'s tries) while it is not positive definite (its
     /// factorization fails, or conjugate gradients meet non-positive curvature).
     /// Returns `Some(shifted)` (whether inertia was added) on success. `last_shift` is the
     /// inertia that succeeded last in this step (0: none yet); a success updates it.
@@ -1178,7 +1182,7 @@ impl Integrator {
 
     /// The Newton direction with the exact (where cheap) Hessian: assembles it and factorizes
     /// it; if it is not positive definite, adds inertia (a smaller effective step, still the
-    /// exact Hessian's shape) up to [`SHIFT_TRIES`] times. Returns `Some(shifted)` with the
+    /// exact Hessian's shape) as [`shift_ladder`] says. Returns `Some(shifted)` with the
     /// direction in `dir`, or `None` when every try failed or the gradient is not finite
     /// (then `values` hold no usable matrix: the caller assembles the projected one).
     /// A shifted direction is shorter than Newton's: it must not end the iteration.
@@ -1930,9 +1934,15 @@ mod tests {
             .map(|f| f * 1.56)
             .collect();
         assert!(close(&restart, &want), "{restart:?}");
-        // ½L below the first shift: from the first shift, back to L, then 5× the increment.
+        // ½L below the first shift: from the first shift, back to L, then 5× the larger
+        // of the two steps (the ceiling no lower than the fresh ladder's).
         let low = totals(0.015);
-        assert!(close(&low, &[0.01, 0.015, 0.04, 0.165, 0.79]), "{low:?}");
+        assert!(close(&low, &[0.01, 0.015, 0.065, 0.315, 1.565]), "{low:?}");
+        for l in [0.0101, 0.013125, 0.019, 0.02, 0.5, 3.0] {
+            let t = totals(l);
+            assert!(t.windows(2).all(|w| w[1] > w[0]), "{l}: {t:?}");
+            assert!(*t.last().unwrap() >= 1.56, "{l}: {t:?}");
+        }
         // L at the first shift: nothing to climb back to.
         assert!(close(&totals(0.01), &fresh));
     }

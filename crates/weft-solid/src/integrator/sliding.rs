@@ -832,6 +832,8 @@ mod tests {
         // (its extra tangential part moves that by 3e-5 of the step).
         let a = cap(&integ, &sys, &dir(0.7, -1e-6), 1.0);
         assert!((a - 0.4).abs() < 1e-4, "{a}");
+        // 0.7 µm wide, beyond ε/2 (but within ε): not stopped; the ring's cap decides.
+        assert!(close(cap(&integ, &sys, &dir(0.7, -2e-6), 1.0), 0.7));
         // A slider not pressed on its target (no normal force) has no friction to stop at;
         // nor one without friction.
         integ.slide_normal = vec![0.0, 1.0];
