@@ -1912,8 +1912,9 @@ unsafe fn scatter(
 mod tests {
     use super::*;
 
-    /// The inertia ladder's totals: 5× steps from nothing; from a last shift L, ½L, then L
-    /// again, then 5× the last increment.
+    /// The inertia ladder's totals: 5× steps from nothing; from a last shift L, ½L (at least
+    /// the first shift), then L again, then increments 5× the larger of the first two, growing
+    /// 5× a try.
     #[test]
     fn the_inertia_ladder_climbs_back_to_the_last_shift_before_growing() {
         let totals = |last: f64| -> Vec<f64> {
