@@ -124,6 +124,10 @@ pub struct FrameStats {
     /// `weft-solid`'s `integrator/rate.rs`), summed over steps and over the solves of a
     /// contact step thrown away for a re-solve.
     pub rate_stops: usize,
+    /// Moves along a direction of negative curvature after shifted Newton steps (see
+    /// `weft-solid`'s `integrator/curvature.rs`), summed over steps and over the solves of
+    /// a contact step thrown away for a re-solve.
+    pub curvature_moves: usize,
     /// Wall time of the frame.
     pub seconds: f64,
     /// Contacts with colliders: `None` when the scene builds no contact machinery.
@@ -284,6 +288,7 @@ impl SolidStepper {
                 stats.extrapolations += s.extrapolations;
                 stats.extrapolation_halvings += s.extrapolation_halvings;
                 stats.rate_stops += s.rate_stops;
+                stats.curvature_moves += s.curvature_moves;
                 *history = before.map(|b| (b, h));
                 Ok(())
             }

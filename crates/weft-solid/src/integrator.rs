@@ -22,6 +22,7 @@
 
 mod contacts;
 mod correction;
+mod curvature;
 mod factor;
 mod one_ring;
 mod order;
@@ -256,6 +257,10 @@ pub struct Integrator {
     x_trial: Vec<Vector3<f64>>,
     /// The second-order correction's trial positions.
     x_soc: Vec<Vector3<f64>>,
+    /// Negative curvature's vector, work vector and inertia diagonal (`curvature.rs`).
+    curv_v: Vec<f64>,
+    curv_w: Vec<f64>,
+    curv_d: Vec<f64>,
     /// The rods' second-order correction (their segments and its scratch).
     correction: correction::LengthCorrection,
     local: Local,
@@ -578,6 +583,9 @@ impl Integrator {
             x_hat: vec![Vector3::zeros(); n],
             x_trial: vec![Vector3::zeros(); n],
             x_soc: vec![Vector3::zeros(); n],
+            curv_v: Vec::new(),
+            curv_w: Vec::new(),
+            curv_d: Vec::new(),
             correction: correction::LengthCorrection::new(
                 sys.elements
                     .stretches
@@ -1244,6 +1252,15 @@ impl Integrator {
         }
     }
 
+    /// `b` ← A⁻¹ `b` with the factor the last direction was found with: the
+    /// preconditioner's while conjugate gradients are on, else H's.
+    fn solve_with_last(&mut self, b: &mut [f64]) {
+        match preconditioner!(self) {
+            Some(pre) => pre.apply(b),
+            None => self.factor.solve_in_place(b),
+        }
+    }
+
     /// Solves with the last factor in place (`b` ← H⁻¹ b, 3 entries per free vertex).
     fn solve_in_place(&mut self, stats: &mut StepStats, b: &mut [f64]) {
         let t = Instant::now();
@@ -1648,7 +1665,8 @@ impl Integrator {
             let mut res = self.direction_size(scale);
             // A direction computed with added inertia is shorter than Newton's: below the
             // tolerance it proves nothing, so the projected Hessians' direction decides.
-            if first == Some(true) && res < settings.tolerance {
+            let reassembled = first == Some(true) && res < settings.tolerance;
+            if reassembled {
                 let t = Instant::now();
                 self.assemble(sys, x, x0, mode);
                 stats.assembly_seconds += t.elapsed().as_secs_f64();
@@ -1764,6 +1782,20 @@ impl Integrator {
                 let from = std::mem::take(&mut self.x_trial);
                 self.carry_stress(sys, &from, x, alpha);
                 self.x_trial = from;
+            }
+            // After a shifted direction, a move along the negative curvature its inertia
+            // hid (`curvature.rs`). (The rate's test below counts unshifted steps only.)
+            if let (Mode::Dynamic { h }, Some(true), false) = (mode, first, reassembled)
+                && self.curvature_moves(sys)
+            {
+                let t = Instant::now();
+                let lambda = self.negative_curvature(sys, h, last_shift);
+                stats.solve_seconds += t.elapsed().as_secs_f64();
+                if lambda < 0.0 {
+                    let base = alpha * self.step_size(&self.dir);
+                    let moved = self.curvature_search(sys, x, x0, mode, base, &mut e_at_x);
+                    stats.curvature_moves += usize::from(moved);
+                }
             }
             // Or the corrections still to come, estimated from the contraction of the full
             // steps (`rate.rs`), are below the tolerance: with the first Hessians only

@@ -93,6 +93,9 @@ pub struct StepStats {
     /// down to the full step; one try from 20 counts up to 5): what the tail's sums cost
     /// in objective evaluations where they did not pay.
     pub extrapolation_halvings: usize,
+    /// Moves along a direction of negative curvature after a shifted Newton step
+    /// (`integrator/curvature.rs`).
+    pub curvature_moves: usize,
     /// Newton loops ended by their rate's estimate of the corrections still to come
     /// (`integrator/rate.rs`), one iteration before a step below the tolerance would have
     /// been measured.
@@ -121,6 +124,7 @@ impl StepStats {
         self.extrapolations += earlier.extrapolations;
         self.extrapolation_halvings += earlier.extrapolation_halvings;
         self.rate_stops += earlier.rate_stops;
+        self.curvature_moves += earlier.curvature_moves;
     }
 
     /// What the step left to converge [m/s]: the rate's estimate where the loop ended by it,

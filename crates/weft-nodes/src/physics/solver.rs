@@ -299,7 +299,7 @@ impl Step for SolidSolver {
                     "corrections": s.corrections, "correction_iterations": s.correction_iterations,
                     "extrapolations": s.extrapolations,
                     "extrapolation_halvings": s.extrapolation_halvings,
-                    "rate_stops": s.rate_stops,
+                    "rate_stops": s.rate_stops, "curvature_moves": s.curvature_moves,
                     "retry_causes": s.retry_causes.iter().map(|(_, m)| m).collect::<Vec<_>>(),
                 });
                 if let Some(c) = &s.contacts {

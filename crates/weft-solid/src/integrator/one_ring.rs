@@ -369,6 +369,11 @@ impl OneRing {
         self.factor.bytes() + 8 * vectors as u64
     }
 
+    /// `b` ← M⁻¹ `b` with the last factor of M.
+    pub(super) fn apply(&mut self, b: &mut [f64]) {
+        self.factor.solve_in_place(b);
+    }
+
     /// Whether M's factor is split in two halves (then steps run on a pool worker).
     pub(super) fn is_split(&self) -> bool {
         self.factor.split.is_some()
@@ -384,7 +389,7 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 /// whole, column-major). H is symmetric, so node v's rows are its column's blocks
 /// transposed: each node's three entries are summed from its own column alone, in the
 /// column's order, concurrently over nodes and the same bits at any thread count.
-fn product(h: &[f64], col_ptr: &[usize], row_idx: &[usize], p: &[f64], q: &mut [f64]) {
+pub(super) fn product(h: &[f64], col_ptr: &[usize], row_idx: &[usize], p: &[f64], q: &mut [f64]) {
     let row = |v: usize, qv: &mut [f64]| {
         let (start, end) = (col_ptr[3 * v], col_ptr[3 * v + 1]);
         let blocks = h[start..start + 3 * (end - start)].chunks_exact(9);
