@@ -1252,6 +1252,29 @@ impl Integrator {
         }
     }
 
+    /// `trial` ← x + α·dir for the free vertices (held ones stay at x), rigid groups' members
+    /// moved with their frames and sliders retracted to their curves: every trial point of
+    /// the line searches and of the moves along negative curvature.
+    fn place(
+        &self,
+        sys: &SolidSystem,
+        x: &[Vector3<f64>],
+        dir: &[f64],
+        alpha: f64,
+        trial: &mut [Vector3<f64>],
+    ) {
+        for ((t, p), &f) in trial.iter_mut().zip(x).zip(&self.free_of) {
+            *t = if f == NONE {
+                *p
+            } else {
+                let f = 3 * f as usize;
+                p + alpha * Vector3::new(dir[f], dir[f + 1], dir[f + 2])
+            };
+        }
+        self.move_members(dir, alpha, trial);
+        self.retract(sys, trial);
+    }
+
     /// `b` ← A⁻¹ `b` with the factor the last direction was found with: the
     /// preconditioner's while conjugate gradients are on, else H's.
     fn solve_with_last(&mut self, b: &mut [f64]) {
@@ -1714,17 +1737,8 @@ impl Integrator {
             e_at_x = None;
             let corrections = stats.corrections;
             loop {
-                for ((t, &p), &f) in self.x_trial.iter_mut().zip(x.iter()).zip(&self.free_of) {
-                    *t = if f == NONE {
-                        p
-                    } else {
-                        let f = 3 * f as usize;
-                        p + alpha * Vector3::new(self.dir[f], self.dir[f + 1], self.dir[f + 2])
-                    };
-                }
                 let mut trial = std::mem::take(&mut self.x_trial);
-                self.move_members(&self.dir, alpha, &mut trial);
-                self.retract(sys, &mut trial);
+                self.place(sys, x, &self.dir, alpha, &mut trial);
                 self.x_trial = trial;
                 if linearized || done {
                     break;

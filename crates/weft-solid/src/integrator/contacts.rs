@@ -864,28 +864,6 @@ impl Integrator {
         state.x = x;
         Ok((stats, cstats))
     }
-
-    /// `trial` ← x + α·dir for the free vertices (held ones stay at x), rigid groups' members
-    /// moved with their frames and sliders retracted to their curves.
-    fn place(
-        &self,
-        sys: &SolidSystem,
-        x: &[Vector3<f64>],
-        dir: &[f64],
-        alpha: f64,
-        trial: &mut [Vector3<f64>],
-    ) {
-        for ((t, p), &f) in trial.iter_mut().zip(x).zip(&self.free_of) {
-            *t = if f == NONE {
-                *p
-            } else {
-                let f = 3 * f as usize;
-                p + alpha * Vector3::new(dir[f], dir[f + 1], dir[f + 2])
-            };
-        }
-        self.move_members(dir, alpha, trial);
-        self.retract(sys, trial);
-    }
 }
 
 /// The gradient of the contact's damping term ½ c m h (n·(v − v_c))² in the point's

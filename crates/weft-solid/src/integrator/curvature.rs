@@ -204,16 +204,8 @@ impl Integrator {
         mode: Mode,
         t: f64,
     ) -> f64 {
-        for ((tr, &p), &f) in self.x_trial.iter_mut().zip(x).zip(&self.free_of) {
-            *tr = if f == NONE {
-                p
-            } else {
-                let f = 3 * f as usize;
-                let v = &self.curv_v;
-                p + t * Vector3::new(v[f], v[f + 1], v[f + 2])
-            };
-        }
-        let trial = std::mem::take(&mut self.x_trial);
+        let mut trial = std::mem::take(&mut self.x_trial);
+        self.place(sys, x, &self.curv_v, t, &mut trial);
         let e = self.objective(sys, &trial, x0, mode);
         self.x_trial = trial;
         e
