@@ -26,12 +26,14 @@
 //!
 //! Limits: a move needs a shifted iteration that does not end the step, so a saddle reached
 //! exactly (a zero gradient) or within the tolerance is not left; and a move is taken on
-//! any decrease of the objective, even one below the line search's resolution (its
-//! `unresolvable` test): at 1e-7 m/s on the 64² sheet such moves and the whole Newton
-//! steps after them cycle along a mode flatter than the objective resolves (BENCHMARKS.md,
-//! thirty-eighth session). Not for rigid groups' or sliders' nodes (their moves go through
-//! `move_members` and `retract`; their steps keep the ladder alone), nor for the contact
-//! step (its model is kept convex by its budget, `fill_budget`).
+//! any decrease of the objective, even one below the line search's threshold (its
+//! `unresolvable` test, far coarser than the objective's own rounding): at 1e-7 m/s on the
+//! 64² sheet such moves and the whole Newton steps after them cycle along a mode flatter
+//! than that threshold, and tightening it cost more iterations at the default tolerance
+//! than it saved (BENCHMARKS.md, thirty-eighth and thirty-ninth sessions). Not for rigid
+//! groups' or sliders' nodes (their moves go through `move_members` and `retract`; their
+//! steps keep the ladder alone), nor for the contact step (its model is kept convex by its
+//! budget, `fill_budget`).
 
 use super::{Integrator, Mode, NONE, one_ring};
 use crate::system::SolidSystem;
