@@ -128,6 +128,9 @@ pub struct FrameStats {
     /// `weft-solid`'s `integrator/curvature.rs`), summed over steps and over the solves of
     /// a contact step thrown away for a re-solve.
     pub curvature_moves: usize,
+    /// Patches around lagging vertices solved locally after Newton steps (see
+    /// `weft-solid`'s `integrator/elimination.rs`), summed like `curvature_moves`.
+    pub eliminations: usize,
     /// Wall time of the frame.
     pub seconds: f64,
     /// Contacts with colliders: `None` when the scene builds no contact machinery.
@@ -289,6 +292,7 @@ impl SolidStepper {
                 stats.extrapolation_halvings += s.extrapolation_halvings;
                 stats.rate_stops += s.rate_stops;
                 stats.curvature_moves += s.curvature_moves;
+                stats.eliminations += s.eliminations;
                 *history = before.map(|b| (b, h));
                 Ok(())
             }

@@ -23,6 +23,7 @@
 mod contacts;
 mod correction;
 mod curvature;
+mod elimination;
 mod factor;
 mod one_ring;
 mod order;
@@ -263,6 +264,8 @@ pub struct Integrator {
     curv_d: Vec<f64>,
     /// The rods' second-order correction (their segments and its scratch).
     correction: correction::LengthCorrection,
+    /// The lagging vertices' local solves (`elimination.rs`): adjacency built on first use.
+    elimination: elimination::Elimination,
     local: Local,
     /// Per element: where its blocks start in `slots`.
     slot_offset: Vec<usize>,
@@ -586,6 +589,7 @@ impl Integrator {
             curv_v: Vec::new(),
             curv_w: Vec::new(),
             curv_d: Vec::new(),
+            elimination: elimination::Elimination::default(),
             correction: correction::LengthCorrection::new(
                 sys.elements
                     .stretches
@@ -650,16 +654,7 @@ impl Integrator {
             if !self.held(i) {
                 let m = sys.mass[i];
                 e += match mode {
-                    Mode::Dynamic { h } => {
-                        let mut e = m / (2.0 * h * h) * (x[i] - self.x_hat[i]).norm_squared()
-                            + sys.damping(i) * m / (2.0 * h) * (x[i] - x0[i]).norm_squared();
-                        // Drag: (1/2h) rᵀDr with r = x − x⁰ − h u, whose gradient is D(v − u).
-                        if let Some(d) = sys.drag(i) {
-                            let r = x[i] - x0[i] - h * d.flow;
-                            e += 0.5 / h * r.dot(&(d.matrix * r));
-                        }
-                        e
-                    }
+                    Mode::Dynamic { h } => self.vertex_energy(sys, x, x0, h, i),
                     // Static: the potential of gravity and the constant loads.
                     Mode::Static => -(m * sys.gravity + sys.force(i)).dot(&x[i]),
                 };
@@ -697,6 +692,26 @@ impl Integrator {
             }
             _ => e,
         }
+    }
+
+    /// Vertex `i`'s own terms of a dynamic step's objective: inertia, damping and drag.
+    fn vertex_energy(
+        &self,
+        sys: &SolidSystem,
+        x: &[Vector3<f64>],
+        x0: &[Vector3<f64>],
+        h: f64,
+        i: usize,
+    ) -> f64 {
+        let m = sys.mass[i];
+        let mut e = m / (2.0 * h * h) * (x[i] - self.x_hat[i]).norm_squared()
+            + sys.damping(i) * m / (2.0 * h) * (x[i] - x0[i]).norm_squared();
+        // Drag: (1/2h) rᵀDr with r = x − x⁰ − h u, whose gradient is D(v − u).
+        if let Some(d) = sys.drag(i) {
+            let r = x[i] - x0[i] - h * d.flow;
+            e += 0.5 / h * r.dot(&(d.matrix * r));
+        }
+        e
     }
 
     /// Fills `grad` and `values` at `x`, with every element Hessian projected to PSD.
@@ -1813,6 +1828,23 @@ impl Integrator {
                     let moved = self.curvature_search(sys, x, x0, mode, base, &mut e_at_x);
                     stats.curvature_moves += usize::from(moved);
                 }
+            }
+            // Then the few vertices whose steps lag the rest solved locally, each patch
+            // around one of them by its own Newton iterations (`elimination.rs`). Where
+            // they end the step's last iterations, the rate's test below reads the
+            // contraction of Newton and this together, the iteration that is repeated.
+            if let (Mode::Dynamic { h }, true) = (mode, carry && self.eliminates(sys)) {
+                let mut before = std::mem::take(&mut self.x_trial);
+                before.copy_from_slice(x);
+                let moved = self.eliminate(sys, x, x0, h, alpha, scale, settings.tolerance);
+                if moved > 0 {
+                    stats.eliminations += moved;
+                    e_at_x = None;
+                    // The moved membranes' carried stress follows by their linearized strain,
+                    // as after a move along negative curvature.
+                    self.carry_stress(sys, &before, x, 0.0);
+                }
+                self.x_trial = before;
             }
             // Or the corrections still to come, estimated from the contraction of the full
             // steps (`rate.rs`), are below the tolerance: with the first Hessians only

@@ -96,6 +96,9 @@ pub struct StepStats {
     /// Moves along a direction of negative curvature after a shifted Newton step
     /// (`integrator/curvature.rs`).
     pub curvature_moves: usize,
+    /// Patches around lagging vertices solved by their own Newton iterations after a
+    /// Newton step, and moved (`integrator/elimination.rs`).
+    pub eliminations: usize,
     /// Newton loops ended by their rate's estimate of the corrections still to come
     /// (`integrator/rate.rs`), one iteration before a step below the tolerance would have
     /// been measured.
@@ -125,6 +128,7 @@ impl StepStats {
         self.extrapolation_halvings += earlier.extrapolation_halvings;
         self.rate_stops += earlier.rate_stops;
         self.curvature_moves += earlier.curvature_moves;
+        self.eliminations += earlier.eliminations;
     }
 
     /// What the step left to converge [m/s]: the rate's estimate where the loop ended by it,

@@ -300,6 +300,7 @@ impl Step for SolidSolver {
                     "extrapolations": s.extrapolations,
                     "extrapolation_halvings": s.extrapolation_halvings,
                     "rate_stops": s.rate_stops, "curvature_moves": s.curvature_moves,
+                    "eliminations": s.eliminations,
                     "retry_causes": s.retry_causes.iter().map(|(_, m)| m).collect::<Vec<_>>(),
                 });
                 if let Some(c) = &s.contacts {
