@@ -73,8 +73,9 @@ pub(super) struct Elimination {
     steps: Vec<(f64, u32)>,
     /// Vertex → its index in the patch being solved (NONE elsewhere).
     slot: Vec<u32>,
-    /// Vertices already in a patch this iteration.
+    /// Vertices already in a patch this iteration, and the list of them.
     covered: Vec<bool>,
+    touched: Vec<u32>,
     /// Elements already listed for the patch being solved.
     listed: Vec<bool>,
     patch: Vec<u32>,
@@ -284,22 +285,29 @@ impl Integrator {
             self.elimination = el;
             return 0;
         }
-        // Largest first, ties by index: a fixed order.
-        el.steps
-            .sort_unstable_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
-        let top = el.steps[0].0;
-        let median = el.steps[count / 2].0;
+        // The largest step and the median (the ⌈count/2⌉-th largest) without sorting every
+        // vertex: the k-th value is the same whichever order selection leaves.
+        let top = el.steps.iter().fold(0.0f64, |m, s| m.max(s.0));
+        let nth = count - 1 - count / 2;
+        let median = el
+            .steps
+            .select_nth_unstable_by(nth, |a, b| a.0.total_cmp(&b.0))
+            .1
+            .0;
         let bar = (LAG_OF_TOP * top).max(LAG_OF_MEDIAN * median);
         let mut moved = 0;
         if top * scale > tolerance && top.is_finite() {
+            // The lagging vertices, largest first, ties by index: a fixed order.
+            el.steps.retain(|s| s.0 >= bar);
+            el.steps
+                .sort_unstable_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
             let mut local = std::mem::take(&mut self.local);
             let mut patches = 0;
-            for k in 0..count {
-                let (s, v) = el.steps[k];
-                if s < bar || patches == PATCHES {
+            for k in 0..el.steps.len() {
+                if patches == PATCHES {
                     break;
                 }
-                let v = v as usize;
+                let v = el.steps[k].1 as usize;
                 if el.covered[v] {
                     continue;
                 }
@@ -307,15 +315,17 @@ impl Integrator {
                 for &u in &el.patch {
                     el.covered[u as usize] = true;
                 }
+                el.touched.extend_from_slice(&el.patch);
                 patches += 1;
                 if self.solve_patch(sys, &mut el, x, x0, h, tolerance, &mut local) {
                     moved += 1;
                 }
                 el.release();
             }
-            for k in 0..count {
-                el.covered[el.steps[k].1 as usize] = false;
+            for k in 0..el.touched.len() {
+                el.covered[el.touched[k] as usize] = false;
             }
+            el.touched.clear();
             self.local = local;
         }
         self.elimination = el;
