@@ -8,11 +8,11 @@
 //! Why: the stopping test reads the largest vertex correction (‖Δx‖∞/h), and on a hanging
 //! cloth after the first iteration that largest one sits on one to a handful of vertices —
 //! next to a pinned corner, on the taut edge between the pins, or where a fold turns —
-//! while the median vertex's correction is already 40–1,400× smaller and falling
-//! quadratically (cloth_hang, traced: largest 4.6e-2, 2.2e-2, 1.4e-2, 2.2e-3 m/s, the last
-//! three on one vertex, against a median of 2.5e-4, 5.7e-5, 4.1e-5, 1.6e-6). Their local
-//! energy is the most nonlinear part of the scene, and the global Newton step, linear in
-//! all vertices at once, covers only part of their way each iteration. Solving the local
+//! while the median vertex's correction is 40–1,400× smaller and falls faster (cloth_hang,
+//! traced: largest 1.1e-1, 4.6e-2, 2.2e-2, 1.4e-2, 2.2e-3 m/s, the last three on one
+//! vertex, against a median of 2.7e-3, 2.5e-4, 5.7e-5, 4.1e-5, 1.6e-6). Their local energy
+//! is the most nonlinear part of the scene, and the global Newton step, linear in all
+//! vertices at once, covers only part of their way each iteration. Solving the local
 //! problem (each patch's own Newton on its vertices with the inertia and every element
 //! touching them) takes them the rest of the way for the cost of a few dense 57 × 57
 //! solves, and the next global iteration sees a nearly linear problem again.
@@ -25,21 +25,26 @@
 //! first Hessians (exact membranes, bending's Gauss–Newton term) and the inertia; where the
 //! dense Cholesky fails, inertia is added as the global ladder does; an Armijo line search on
 //! the patch's objective (its vertices' inertia terms and every element touching them: the
-//! whole objective's change when only they move) keeps every move a descent, so the Newton
-//! loop's convergence and its tests are unchanged. Cloth only ([`Integrator::eliminates`]:
+//! whole objective's change when only they move) keeps every move a descent. The loop's
+//! tests still read the global Newton correction, measured before the patches move: its
+//! rate's test (`rate.rs`) then reads the contraction of Newton and elimination together,
+//! and a loop it ends keeps that iteration's patch moves, which its estimate does not
+//! measure (traced: where the rate ended a loop, the next Newton correction was below the
+//! tolerance in 31 of 32 loops, as in 27 of 28 without the elimination). Cloth only ([`Integrator::eliminates`]:
 //! on hair it did not pay), not for rigid groups' or sliders' nodes (their moves go through
 //! `move_members` and `retract`), nor in the contact step (a local move would not see the
 //! contacts).
 //!
 //! Measured (Newton iterations a step, factorizations; BENCHMARKS.md, fortieth session):
-//! cloth_hang (24 frames) 6.02, 366 → 4.71, 279, and its answer as near a run at 1e-7 m/s
-//! as before at a tolerance a third as tight (3e-5 m/s: 4.98 a step, 6.0e-5 m off against
-//! 6.4e-5 m before; at the example's 1e-4 m/s, 2.0e-4 m against 7.4e-5 m, both in the
-//! frames where the cloth buckles); at one substep 9.38, 420 → 8.63, 355; the ten cases of
-//! the thirty-eighth session 949, 1,342 → 883, 1,223. The sheets of `bench/sheet_graph.py`,
-//! whose slow part is the whole edge row between the pins rather than a handful of
-//! vertices, keep their counts (within 2 iterations over 8 frames, except 40²: 52 → 62;
-//! 128², 6 frames, 33 → 35; 317², 2 frames, 11 → 11).
+//! cloth_hang (24 frames) 6.02, 366 → 4.71, 279; its largest distance from a run at
+//! 1e-7 m/s, in the frames where it buckles, 7.4e-5 → 2.0e-4 m at the example's 1e-4 m/s,
+//! and 6.0e-5 m at 3e-5 m/s, where it takes 4.98 iterations a step: nearer the converged
+//! run in fewer iterations than before. At one substep 225 → 207 iterations for 24 steps,
+//! 420 → 355 factorizations; the ten cases of the thirty-eighth session 949, 1,342 → 883,
+//! 1,223. The sheets of `bench/sheet_graph.py`, whose slow part is a band of tens to
+//! hundreds of vertices along the edge between the pins and the folds rather than a
+//! handful, gain nothing (8 frames: within 2 iterations, except 40², 52 → 62; 128², 6
+//! frames, 33 → 35; 317², 2 frames, 11 → 11).
 
 use super::{Integrator, NONE, shift_ladder};
 use crate::energy::Local;
@@ -86,6 +91,8 @@ pub(super) struct Elimination {
     grad: Vec<f64>,
     step: Vec<f64>,
     start: Vec<Vector3<f64>>,
+    /// Element scratch, allocated on first use.
+    local: Option<Box<Local>>,
 }
 
 impl Elimination {
@@ -268,7 +275,9 @@ impl Integrator {
         tolerance: f64,
     ) -> usize {
         let mut el = std::mem::take(&mut self.elimination);
-        if el.slot.len() != self.n {
+        // Built once per system (an integrator serves one system; the element count is
+        // checked as well as the vertex count).
+        if el.slot.len() != self.n || el.listed.len() != sys.elements.len() {
             el.build(sys, &self.free_of);
         }
         el.steps.clear();
@@ -301,7 +310,8 @@ impl Integrator {
             el.steps.retain(|s| s.0 >= bar);
             el.steps
                 .sort_unstable_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
-            let mut local = std::mem::take(&mut self.local);
+            // The element scratch lives in `Elimination` (a Local is 74 KB: not rebuilt per call).
+            let mut local = el.local.take().unwrap_or_default();
             let mut patches = 0;
             for k in 0..el.steps.len() {
                 if patches == PATCHES {
@@ -326,7 +336,7 @@ impl Integrator {
                 el.covered[el.touched[k] as usize] = false;
             }
             el.touched.clear();
-            self.local = local;
+            el.local = Some(local);
         }
         self.elimination = el;
         moved
