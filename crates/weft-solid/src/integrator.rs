@@ -714,6 +714,27 @@ impl Integrator {
         e
     }
 
+    /// The gradient and Hessian of [`Self::vertex_energy`]: (a + b)(x − x̂)-like terms and
+    /// (a + b) I, a = m/h², b = c m/h, plus drag's D(v − u) and D/h.
+    fn vertex_terms(
+        &self,
+        sys: &SolidSystem,
+        x: &[Vector3<f64>],
+        x0: &[Vector3<f64>],
+        h: f64,
+        i: usize,
+    ) -> (Vector3<f64>, Matrix3<f64>) {
+        let m = sys.mass[i];
+        let (a, b) = (m / (h * h), sys.damping(i) * m / h);
+        let mut g = a * (x[i] - self.x_hat[i]) + b * (x[i] - x0[i]);
+        let mut hess = (a + b) * Matrix3::identity();
+        if let Some(d) = sys.drag(i) {
+            g += d.matrix * ((x[i] - x0[i]) / h - d.flow);
+            hess += d.matrix / h;
+        }
+        (g, hess)
+    }
+
     /// Fills `grad` and `values` at `x`, with every element Hessian projected to PSD.
     fn assemble(&mut self, sys: &SolidSystem, x: &[Vector3<f64>], x0: &[Vector3<f64>], mode: Mode) {
         self.assemble_with(sys, x, x0, mode, Hessians::Projected);
@@ -903,20 +924,10 @@ impl Integrator {
             for k in 0..self.groups.members[g].len() {
                 let i = self.groups.members[g][k] as usize;
                 let m = sys.mass[i];
-                let (mut g, mut hess) = match mode {
-                    Mode::Dynamic { h } => {
-                        let (a, b) = (m / (h * h), sys.damping(i) * m / h);
-                        (
-                            a * (x[i] - self.x_hat[i]) + b * (x[i] - x0[i]),
-                            (a + b) * Matrix3::identity(),
-                        )
-                    }
+                let (g, hess) = match mode {
+                    Mode::Dynamic { h } => self.vertex_terms(sys, x, x0, h, i),
                     Mode::Static => (-(m * sys.gravity + sys.force(i)), Matrix3::zeros()),
                 };
-                if let (Mode::Dynamic { h }, Some(d)) = (mode, sys.drag(i)) {
-                    g += d.matrix * ((x[i] - x0[i]) / h - d.flow);
-                    hess += d.matrix / h;
-                }
                 self.force_scale += g.abs().sum();
                 self.add_member_terms(i, &g, &hess);
             }

@@ -260,9 +260,9 @@ impl Integrator {
             && self.curvature_moves(sys)
     }
 
-    /// After a Newton step of `alpha` × `dir` from `from` to `x` (step `h`): local Newton on
-    /// the patches around the vertices that lag (see the module's doc). Returns the patches
-    /// moved. `scale` turns a displacement into the residual the tolerance reads.
+    /// After a Newton step of `alpha` × `self.dir` that ended at `x` (time step `h`): local
+    /// Newton on the patches around the vertices that lag (see the module's doc). Returns the
+    /// patches moved. `scale` turns a displacement into the residual the tolerance reads.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn eliminate(
         &mut self,
@@ -365,7 +365,7 @@ impl Integrator {
     /// Local Newton on `el`'s patch, the other vertices held; whether it moved.
     #[allow(clippy::too_many_arguments)]
     fn solve_patch(
-        &mut self,
+        &self,
         sys: &SolidSystem,
         el: &mut Elimination,
         x: &mut [Vector3<f64>],
@@ -378,21 +378,15 @@ impl Integrator {
         let n3 = 3 * p;
         let ld = 3 * MAX_PATCH;
         let mut moved = false;
+        // The patch's objective at `x`, once known (the last accepted trial's).
+        let mut e_now = None;
         for _ in 0..LOCAL_ITERATIONS {
             el.grad[..n3].fill(0.0);
             for j in 0..n3 {
                 el.hess[j * ld..j * ld + n3].fill(0.0);
             }
             for (a, &v) in el.patch.iter().enumerate() {
-                let v = v as usize;
-                let m = sys.mass[v];
-                let c = sys.damping(v) * m / h;
-                let mut g = m / (h * h) * (x[v] - self.x_hat[v]) + c * (x[v] - x0[v]);
-                let mut hv = nalgebra::Matrix3::identity() * (m / (h * h) + c);
-                if let Some(d) = sys.drag(v) {
-                    g += d.matrix * (x[v] - x0[v] - h * d.flow) / h;
-                    hv += d.matrix / h;
-                }
+                let (g, hv) = self.vertex_terms(sys, x, x0, h, v as usize);
                 for r in 0..3 {
                     el.grad[3 * a + r] += g[r];
                     for q in 0..3 {
@@ -457,7 +451,7 @@ impl Integrator {
             if slope.is_nan() || slope >= 0.0 || !size.is_finite() || size < 0.1 * tolerance * h {
                 break;
             }
-            let e0 = self.patch_objective(sys, el, x, x0, h);
+            let e0 = e_now.unwrap_or_else(|| self.patch_objective(sys, el, x, x0, h));
             for (a, &v) in el.patch.iter().enumerate() {
                 el.start[a] = x[v as usize];
             }
@@ -468,7 +462,9 @@ impl Integrator {
                     let d = Vector3::new(el.step[3 * a], el.step[3 * a + 1], el.step[3 * a + 2]);
                     x[v as usize] = el.start[a] + alpha * d;
                 }
-                if self.patch_objective(sys, el, x, x0, h) <= e0 + 1e-4 * alpha * slope {
+                let e1 = self.patch_objective(sys, el, x, x0, h);
+                if e1 <= e0 + 1e-4 * alpha * slope {
+                    e_now = Some(e1);
                     accepted = true;
                     break;
                 }
