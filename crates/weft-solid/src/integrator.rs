@@ -714,7 +714,7 @@ impl Integrator {
         e
     }
 
-    /// The gradient and Hessian of [`Self::vertex_energy`]: (a + b)(x − x̂)-like terms and
+    /// The gradient and Hessian of [`Self::vertex_energy`]: a (x − x̂) + b (x − x⁰) and
     /// (a + b) I, a = m/h², b = c m/h, plus drag's D(v − u) and D/h.
     fn vertex_terms(
         &self,
