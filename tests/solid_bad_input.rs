@@ -170,7 +170,7 @@ fn element_names_cannot_leave_the_output_directory() {
 }
 
 #[test]
-fn a_usd_file_forgets_frames_from_before_an_upstream_change() {
+fn a_usd_file_forgets_frames_from_before_an_upstream_change_and_their_clips() {
     let dir = tempfile::tempdir().unwrap();
     let usd = dir.path().join("s.usda");
     let text = cloth_graph(GRID, "", "0", "").replace(
@@ -200,4 +200,15 @@ fn a_usd_file_forgets_frames_from_before_an_upstream_change() {
         t.contains("endTimeCode = 2"),
         "stale frames 3 and 4 were kept"
     );
+    // Each frame's points are a clip beside the root; the stale frames' clips are gone.
+    assert!(
+        t.contains("double2[] active = [(0, 0), (1, 1), (2, 2)]\n"),
+        "{t}"
+    );
+    let clips = dir.path().join("s.clips");
+    for f in 0..=4 {
+        let clip = clips.join(format!("s.{f:04}.usda"));
+        assert_eq!(clip.exists(), f <= 2, "{}", clip.display());
+    }
+    assert!(clips.join("manifest.usda").exists());
 }

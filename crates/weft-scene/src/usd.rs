@@ -6,7 +6,10 @@
 //! A [`UsdaScene`] collects prims (triangle meshes as `Mesh`, strands as linear
 //! `BasisCurves`) with fixed topology, then per-frame positions as time samples, and writes one
 //! `.usda` layer: a `World` Xform (the default prim) holding every prim, with `points` (and
-//! `extent`) time-sampled. The stage is Y-up, in metres, with `timeCodesPerSecond` set to the
+//! `extent`) time-sampled. Or it writes the same stage as a clip set: a root layer with the
+//! topology, one value clip a frame with that frame's samples, and their manifest
+//! ([`UsdaScene::write_clip_root`]), which a run writes frame by frame without rewriting
+//! the earlier frames. The stage is Y-up, in metres, with `timeCodesPerSecond` set to the
 //! frame rate, so frame numbers are time codes.
 //!
 //! ```
@@ -143,11 +146,11 @@ struct Prim {
     velocities: BTreeMap<i64, Sample>,
 }
 
-/// One frame's values of a point attribute, formatted once when they are set. A run's output
-/// node rewrites the whole file every frame (atomically, so the file on disk is always
-/// whole): formatting every earlier frame's floats again made a run's formatting quadratic in
-/// its frames (cloth_hang, 576 points: 5.6 ms of 7 a frame at 24 frames, ten times that at
-/// 240), where copying the text is a memcpy.
+/// One frame's values of a point attribute, formatted once when they are set: a single layer
+/// written again after each frame copies the earlier frames' text instead of formatting their
+/// floats again (cloth_hang, 576 points: 5.6 ms of 7 a frame at 24 frames, ten times that at
+/// 240). Copying still grows with the frames, which is why a run writes a clip set instead
+/// ([`UsdaScene::write_clip_root`]).
 #[derive(Debug, Clone)]
 struct Sample {
     /// The values' bounds (for `extent`), `None` when there are none.
@@ -592,6 +595,65 @@ impl UsdaScene {
     pub fn write(&self, w: &mut impl Write) -> io::Result<()> {
         write!(w, "{self}")
     }
+
+    /// Writes the meshes' and curves' samples at `frame` (`extent`, `points`, `velocities`)
+    /// as a value clip: a layer of `over`s under `/World` holding that one frame, which the
+    /// root of [`write_clip_root`](Self::write_clip_root) lists. Prims without a sample at
+    /// `frame` are left out.
+    ///
+    /// # Errors
+    ///
+    /// I/O errors from `w`.
+    pub fn write_clip(&self, frame: i64, w: &mut impl Write) -> io::Result<()> {
+        write!(w, "{}", ClipLayer { scene: self, frame })
+    }
+
+    /// Writes the clips' manifest: the attributes the clips give values to (`extent`,
+    /// `points` and `velocities` of every mesh and curves prim), declared without values.
+    ///
+    /// # Errors
+    ///
+    /// I/O errors from `w`.
+    pub fn write_manifest(&self, w: &mut impl Write) -> io::Result<()> {
+        write!(w, "{}", Manifest(self))
+    }
+
+    /// Writes the root layer of a clip set: the stage's metadata, the prims' topology (no
+    /// points: those come from the clips, one layer a frame) with the clips' metadata on
+    /// `/World`, and the volumes whole (their per-frame file paths are small). With no frame
+    /// in `clips`, the meshes and curves keep their points as in [`write`](Self::write).
+    ///
+    /// Why clips: a root holding every frame is rewritten whole after each frame, so a run's
+    /// writing grows as the square of its frames (cloth_hang at 240 frames: 2.96 s against
+    /// the solver's 6.97 s); a frame's clip is written once, and the root grows by a line's
+    /// worth of metadata a frame. USD resolves the clips at composition, interpolating across
+    /// them (checked with usd-core: `tests/fields.rs`).
+    ///
+    /// # Errors
+    ///
+    /// I/O errors from `w`.
+    pub fn write_clip_root(&self, clips: &ClipSet, w: &mut impl Write) -> io::Result<()> {
+        write!(w, "{}", ClipRoot { scene: self, clips })
+    }
+
+    /// Drops the meshes' and curves' samples, once their clips are written: a run then holds
+    /// one frame at a time, however long.
+    pub fn forget_point_samples(&mut self) {
+        for p in &mut self.prims {
+            p.samples.clear();
+            p.velocities.clear();
+        }
+    }
+}
+
+/// Where the root of a clip set ([`UsdaScene::write_clip_root`]) finds its layers: asset
+/// paths relative to the root layer, written between `@`s (so without `@` in them).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct ClipSet {
+    /// The manifest ([`UsdaScene::write_manifest`]).
+    pub manifest: String,
+    /// Per frame, the clip holding its samples ([`UsdaScene::write_clip`]).
+    pub frames: BTreeMap<i64, String>,
 }
 
 /// Comma-separated items on one line, each formatted by `item`.
@@ -612,11 +674,11 @@ fn list<T>(
 
 /// `INDENT DECL.timeSamples = { frame: value, … }`, one sample a line, each value written by
 /// `item`.
-fn time_samples<T>(
+fn time_samples<'a, T: 'a>(
     f: &mut fmt::Formatter<'_>,
     indent: &str,
     decl: &str,
-    samples: &BTreeMap<i64, T>,
+    samples: impl IntoIterator<Item = (&'a i64, &'a T)>,
     mut item: impl FnMut(&mut fmt::Formatter<'_>, &T) -> fmt::Result,
 ) -> fmt::Result {
     writeln!(f, "{indent}{decl}.timeSamples = {{")?;
@@ -648,7 +710,20 @@ fn extent_list(f: &mut fmt::Formatter<'_>, bounds: Option<[[f32; 3]; 2]>, pad: f
 }
 
 impl Prim {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+    /// What the extent adds around the points: half the widest strand (0 for a mesh).
+    fn extent_pad(&self) -> f32 {
+        match &self.kind {
+            PrimKind::Curves {
+                widths: Some(w), ..
+            } => w.iter().copied().reduce(f32::max).unwrap_or(0.0) * 0.5,
+            _ => 0.0,
+        }
+    }
+
+    /// A mesh's or curves' definition up to its points: the `def` line, the opening brace and
+    /// the topology; returns the extent's padding (half the widest strand). `None` for a
+    /// volume, which [`Prim::fmt_volume`] writes whole.
+    fn fmt_topology(&self, f: &mut fmt::Formatter<'_>) -> Result<Option<f32>, fmt::Error> {
         const I: &str = "        ";
         let pad = match &self.kind {
             PrimKind::Mesh { triangles } => {
@@ -676,14 +751,19 @@ impl Prim {
                     let interpolation = if w.len() == 1 { "constant" } else { "vertex" };
                     writeln!(f, " (\n{I}    interpolation = \"{interpolation}\"\n{I})")?;
                 }
-                widths
-                    .as_ref()
-                    .and_then(|w| w.iter().copied().reduce(f32::max))
-                    .unwrap_or(0.0)
-                    * 0.5
+                self.extent_pad()
             }
-            PrimKind::Volume { fields, files } => return self.fmt_volume(f, fields, files),
+            PrimKind::Volume { .. } => return Ok(None),
         };
+        Ok(Some(pad))
+    }
+
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        const I: &str = "        ";
+        if let PrimKind::Volume { fields, files } = &self.kind {
+            return self.fmt_volume(f, fields, files);
+        }
+        let pad = self.fmt_topology(f)?.unwrap_or(0.0);
         if self.samples.is_empty() {
             write!(f, "{I}float3[] extent = ")?;
             extent_list(f, bounds(&self.rest), pad)?;
@@ -751,26 +831,32 @@ impl Prim {
     }
 }
 
+/// A root layer's header: the stage's metadata (its frame range when there is one), then a
+/// blank line.
+fn layer_header(f: &mut fmt::Formatter<'_>, fps: f64, range: Option<(i64, i64)>) -> fmt::Result {
+    writeln!(f, "#usda 1.0")?;
+    writeln!(f, "(")?;
+    writeln!(f, "    defaultPrim = \"World\"")?;
+    writeln!(f, "    doc = \"Written by Weft\"")?;
+    if let Some((first, last)) = range {
+        writeln!(f, "    endTimeCode = {last}")?;
+        writeln!(f, "    framesPerSecond = {fps}")?;
+        writeln!(f, "    metersPerUnit = 1")?;
+        writeln!(f, "    startTimeCode = {first}")?;
+    } else {
+        writeln!(f, "    framesPerSecond = {fps}")?;
+        writeln!(f, "    metersPerUnit = 1")?;
+    }
+    writeln!(f, "    timeCodesPerSecond = {fps}")?;
+    writeln!(f, "    upAxis = \"Y\"")?;
+    writeln!(f, ")")?;
+    writeln!(f)
+}
+
 impl fmt::Display for UsdaScene {
     /// The scene as `.usda` text.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        writeln!(f, "#usda 1.0")?;
-        writeln!(f, "(")?;
-        writeln!(f, "    defaultPrim = \"World\"")?;
-        writeln!(f, "    doc = \"Written by Weft\"")?;
-        if let Some((first, last)) = self.frame_range() {
-            writeln!(f, "    endTimeCode = {last}")?;
-            writeln!(f, "    framesPerSecond = {}", self.fps)?;
-            writeln!(f, "    metersPerUnit = 1")?;
-            writeln!(f, "    startTimeCode = {first}")?;
-        } else {
-            writeln!(f, "    framesPerSecond = {}", self.fps)?;
-            writeln!(f, "    metersPerUnit = 1")?;
-        }
-        writeln!(f, "    timeCodesPerSecond = {}", self.fps)?;
-        writeln!(f, "    upAxis = \"Y\"")?;
-        writeln!(f, ")")?;
-        writeln!(f)?;
+        layer_header(f, self.fps, self.frame_range())?;
         writeln!(f, "def Xform \"World\"")?;
         writeln!(f, "{{")?;
         for (k, prim) in self.prims.iter().enumerate() {
@@ -778,6 +864,141 @@ impl fmt::Display for UsdaScene {
                 writeln!(f)?;
             }
             prim.fmt(f)?;
+        }
+        writeln!(f, "}}")
+    }
+}
+
+/// One frame's clip layer, for [`UsdaScene::write_clip`].
+struct ClipLayer<'a> {
+    scene: &'a UsdaScene,
+    frame: i64,
+}
+
+/// The meshes and curves: the prims whose values clips hold.
+fn point_based(scene: &UsdaScene) -> impl Iterator<Item = &Prim> {
+    scene
+        .prims
+        .iter()
+        .filter(|p| !matches!(p.kind, PrimKind::Volume { .. }))
+}
+
+impl fmt::Display for ClipLayer<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        const I: &str = "        ";
+        let frame = self.frame;
+        writeln!(f, "#usda 1.0")?;
+        writeln!(f)?;
+        writeln!(f, "over \"World\"")?;
+        writeln!(f, "{{")?;
+        let mut first = true;
+        for prim in point_based(self.scene) {
+            let sample = prim.samples.range(frame..=frame);
+            let velocity = prim.velocities.range(frame..=frame);
+            if sample.clone().next().is_none() && velocity.clone().next().is_none() {
+                continue;
+            }
+            if !first {
+                writeln!(f)?;
+            }
+            first = false;
+            writeln!(f, "    over \"{}\"", prim.name)?;
+            writeln!(f, "    {{")?;
+            if sample.clone().next().is_some() {
+                let pad = prim.extent_pad();
+                time_samples(f, I, "float3[] extent", sample.clone(), |f, p| {
+                    extent_list(f, p.bounds, pad)
+                })?;
+                time_samples(f, I, "point3f[] points", sample, |f, p| {
+                    f.write_str(&p.text)
+                })?;
+            }
+            if velocity.clone().next().is_some() {
+                time_samples(f, I, "vector3f[] velocities", velocity, |f, v| {
+                    f.write_str(&v.text)
+                })?;
+            }
+            writeln!(f, "    }}")?;
+        }
+        writeln!(f, "}}")
+    }
+}
+
+/// The clips' manifest, for [`UsdaScene::write_manifest`].
+struct Manifest<'a>(&'a UsdaScene);
+
+impl fmt::Display for Manifest<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        const I: &str = "        ";
+        writeln!(f, "#usda 1.0")?;
+        writeln!(f)?;
+        writeln!(f, "over \"World\"")?;
+        writeln!(f, "{{")?;
+        for (k, prim) in point_based(self.0).enumerate() {
+            if k > 0 {
+                writeln!(f)?;
+            }
+            writeln!(f, "    over \"{}\"", prim.name)?;
+            writeln!(f, "    {{")?;
+            writeln!(f, "{I}float3[] extent")?;
+            writeln!(f, "{I}point3f[] points")?;
+            writeln!(f, "{I}vector3f[] velocities")?;
+            writeln!(f, "    }}")?;
+        }
+        writeln!(f, "}}")
+    }
+}
+
+/// A clip set's root layer, for [`UsdaScene::write_clip_root`].
+struct ClipRoot<'a> {
+    scene: &'a UsdaScene,
+    clips: &'a ClipSet,
+}
+
+impl fmt::Display for ClipRoot<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (scene, clips) = (self.scene, self.clips);
+        if clips.frames.is_empty() {
+            return fmt::Display::fmt(scene, f);
+        }
+        // The range: the clips' frames and the volumes' files.
+        let mut frames: Vec<i64> = clips.frames.keys().copied().collect();
+        for p in &scene.prims {
+            if let PrimKind::Volume { files, .. } = &p.kind {
+                frames.extend(files.keys());
+            }
+        }
+        let range = frames.iter().min().zip(frames.iter().max());
+        layer_header(f, scene.fps, range.map(|(a, b)| (*a, *b)))?;
+        const D: &str = "            ";
+        writeln!(f, "def Xform \"World\" (")?;
+        writeln!(f, "    clips = {{")?;
+        writeln!(f, "        dictionary default = {{")?;
+        // Clip k is active from its frame on, and maps each stage time to itself.
+        write!(f, "{D}double2[] active = ")?;
+        list(f, clips.frames.keys().enumerate(), |f, (k, t)| {
+            write!(f, "({t}, {k})")
+        })?;
+        write!(f, "\n{D}asset[] assetPaths = ")?;
+        list(f, clips.frames.values(), |f, p| write!(f, "@{p}@"))?;
+        writeln!(f)?;
+        writeln!(f, "{D}asset manifestAssetPath = @{}@", clips.manifest)?;
+        writeln!(f, "{D}string primPath = \"/World\"")?;
+        write!(f, "{D}double2[] times = ")?;
+        list(f, clips.frames.keys(), |f, t| write!(f, "({t}, {t})"))?;
+        writeln!(f)?;
+        writeln!(f, "        }}")?;
+        writeln!(f, "    }}")?;
+        writeln!(f, ")")?;
+        writeln!(f, "{{")?;
+        for (k, prim) in scene.prims.iter().enumerate() {
+            if k > 0 {
+                writeln!(f)?;
+            }
+            match prim.fmt_topology(f)? {
+                Some(_) => writeln!(f, "    }}")?,
+                None => prim.fmt(f)?,
+            }
         }
         writeln!(f, "}}")
     }
@@ -820,6 +1041,100 @@ mod tests {
             }
         }
         depth == 0
+    }
+
+    /// The clip set holds what the single layer holds: each frame's samples in its own clip
+    /// (the same lines), the topology and the clips' metadata in the root, and every
+    /// clip-varying attribute declared in the manifest. (usd-core reads a run's clip set in
+    /// `tests/fields.rs`.)
+    #[test]
+    fn a_clip_set_splits_the_frames_out_of_the_root() {
+        let mut scene = UsdaScene::new(30.0).expect("fps");
+        let cloth = quad(0.0);
+        let hair = strands();
+        scene.add_mesh("cloth", &cloth).expect("mesh");
+        scene
+            .add_curves("hair", &hair, Some(&[0.002]))
+            .expect("curves");
+        let mut clips = ClipSet {
+            manifest: "./s.clips/manifest.usda".into(),
+            frames: BTreeMap::new(),
+        };
+        let single = |scene: &UsdaScene| scene.to_string();
+        let text = |write: &dyn Fn(&mut Vec<u8>) -> io::Result<()>| {
+            let mut b = Vec::new();
+            write(&mut b).expect("write");
+            String::from_utf8(b).expect("utf-8")
+        };
+        for frame in [3, 4] {
+            let z = -0.1 * f64::from(frame as i32);
+            scene
+                .add_frame(frame, &[&quad(z).positions, &hair.positions])
+                .expect("frame");
+            let whole = single(&scene);
+            let clip = text(&|w| scene.write_clip(frame, w));
+            assert!(
+                clip.starts_with("#usda 1.0\n\nover \"World\"\n{\n    over \"cloth\"\n"),
+                "{clip}"
+            );
+            // The clip's sample lines are the single layer's for this frame.
+            let line = |t: &str, from: &str| {
+                t.lines()
+                    .skip_while(|l| !l.contains(from))
+                    .find(|l| l.trim_start().starts_with(&format!("{frame}: ")))
+                    .map(str::to_string)
+            };
+            for attr in ["extent", "points"] {
+                let needle = format!("{attr}.timeSamples");
+                assert!(line(&clip, &needle).is_some(), "{clip}");
+                assert_eq!(line(&clip, &needle), line(&whole, &needle));
+            }
+            assert_eq!(clip.matches(".timeSamples").count(), 4, "{clip}");
+            for (open, close) in [('{', '}'), ('(', ')'), ('[', ']')] {
+                assert!(
+                    balanced(&clip, open, close),
+                    "{open}{close} unbalanced in {clip}"
+                );
+            }
+            clips
+                .frames
+                .insert(frame, format!("./s.clips/s.{frame:04}.usda"));
+            scene.forget_point_samples();
+        }
+        let root = text(&|w| scene.write_clip_root(&clips, w));
+        for needle in [
+            "startTimeCode = 3",
+            "endTimeCode = 4",
+            "def Xform \"World\" (\n    clips = {\n        dictionary default = {\n",
+            "double2[] active = [(3, 0), (4, 1)]\n",
+            "asset[] assetPaths = [@./s.clips/s.0003.usda@, @./s.clips/s.0004.usda@]\n",
+            "asset manifestAssetPath = @./s.clips/manifest.usda@\n",
+            "string primPath = \"/World\"\n",
+            "double2[] times = [(3, 3), (4, 4)]\n",
+            "int[] faceVertexIndices = [0, 1, 2, 0, 2, 3]\n",
+            "float[] widths = [0.002]",
+        ] {
+            assert!(root.contains(needle), "missing {needle:?} in\n{root}");
+        }
+        assert!(!root.contains("points"), "{root}");
+        for (open, close) in [('{', '}'), ('(', ')'), ('[', ']')] {
+            assert!(
+                balanced(&root, open, close),
+                "{open}{close} unbalanced in {root}"
+            );
+        }
+        let manifest = text(&|w| scene.write_manifest(w));
+        assert_eq!(
+            manifest.matches("point3f[] points\n").count(),
+            2,
+            "{manifest}"
+        );
+        assert_eq!(manifest.matches("vector3f[] velocities\n").count(), 2);
+        // Without a clip the root is the single layer.
+        assert_eq!(
+            text(&|w| scene.write_clip_root(&ClipSet::default(), w)),
+            single(&scene)
+        );
     }
 
     #[test]

@@ -7,6 +7,7 @@ use super::types::Scene;
 use std::path::{Path, PathBuf};
 use weft_graph::{EvalCx, Kernel, NodeError, NodeSpec, ParamSpec, Registry, RegistryError};
 use weft_scene::preview::{Image, PreviewItem, auto_camera, encode_png, render};
+use weft_scene::usd::ClipSet;
 use weft_scene::{
     ElementKind, Geometry, Rod, SceneElement, UsdaScene, VolumeField, bounds, write_obj_curves,
     write_obj_mesh,
@@ -65,6 +66,10 @@ struct UsdFile {
     /// Per prim without the solver's velocities (a collider), the last frame written and its
     /// positions, from which its velocity over the next frame follows.
     last: Vec<Option<(i64, Vec<[f64; 3]>)>>,
+    /// The frames' clips written so far, as the root lists them.
+    clips: ClipSet,
+    /// Whether the clips' manifest is on disk for these prims.
+    manifest: bool,
 }
 
 /// `target` relative to the directory `base`, with `/` separators, as USD asset paths want
@@ -165,7 +170,27 @@ impl weft_graph::Compute for UsdOut {
                     || f.volume.is_some() != fields.is_some()
             });
         self.upstream = upstream;
+        // Each frame's points go to their own clip beside the root, `STEM.clips/STEM.FRAME.usda`
+        // (see `UsdaScene::write_clip_root` for why), named in the root between `@`s.
+        let stem = path
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .filter(|s| !s.is_empty() && !s.contains('@'))
+            .ok_or_else(|| {
+                NodeError::Failed(format!(
+                    "param 'path': {}: a USD file needs a UTF-8 name without '@' (its clips are named after it)",
+                    path.display()
+                ))
+            })?
+            .to_string();
+        let clip_dir = path.with_file_name(format!("{stem}.clips"));
+        // The clips of the frames an upstream change made stale, removed once the root no
+        // longer lists them.
+        let mut stale: Vec<i64> = Vec::new();
         if fresh {
+            if let Some(old) = &self.scene {
+                stale.extend(old.clips.frames.keys());
+            }
             let mut usd = UsdaScene::new(cx.context().fps).map_err(|e| fail(&path, e))?;
             let mut prims = Vec::new();
             for e in &elements {
@@ -200,23 +225,14 @@ impl weft_graph::Compute for UsdOut {
                 prims,
                 volume,
                 last,
+                clips: ClipSet {
+                    manifest: format!("./{stem}.clips/manifest.usda"),
+                    frames: Default::default(),
+                },
+                manifest: false,
             });
         }
         let file = self.scene.as_mut().expect("built above");
-        // Every frame's points and velocities stay in memory until the run ends, as the text
-        // they are written as (about 80 bytes a point and frame: cloth_hang's file).
-        let frames = file
-            .usd
-            .frame_range()
-            .map_or(0, |(a, b)| (b - a + 1).max(0) as u64)
-            + 1;
-        let points: u64 = elements.iter().map(|e| e.vertex_count() as u64).sum();
-        weft_graph::memory::check_within(
-            weft_graph::memory::product(&[frames, points, 80]),
-            cx.memory_budget(),
-            || format!("{frames} frames of {points} points in one USD file"),
-            "write fewer frames, or an OBJ sequence (output.obj), which holds one frame at a time",
-        )?;
         let frame = cx.frame();
         let fps = cx.context().fps;
         for ((e, &id), last) in elements.iter().zip(&file.prims).zip(&mut file.last) {
@@ -265,11 +281,42 @@ impl weft_graph::Compute for UsdOut {
                 .set_volume_file(*id, frame, &asset, *extent)
                 .map_err(|err| fail(&path, err))?;
         }
-        weft_graph::atomic_write_with(&path, |w| file.usd.write(&mut &mut *w))
-            .map_err(|e| fail(&path, e))?;
+        // The frame's clip (and the manifest once), then the root that lists it: each file
+        // whole on disk at every moment, and the root never names a clip not yet written.
+        std::fs::create_dir_all(&clip_dir).map_err(|e| fail(&clip_dir, e))?;
+        if !file.manifest {
+            let manifest = clip_dir.join("manifest.usda");
+            weft_graph::atomic_write_with(&manifest, |w| file.usd.write_manifest(&mut &mut *w))
+                .map_err(|e| fail(&manifest, e))?;
+            file.manifest = true;
+        }
+        let name = clip_name(&stem, frame);
+        let clip = clip_dir.join(&name);
+        weft_graph::atomic_write_with(&clip, |w| file.usd.write_clip(frame, &mut &mut *w))
+            .map_err(|e| fail(&clip, e))?;
+        file.clips
+            .frames
+            .insert(frame, format!("./{stem}.clips/{name}"));
+        file.usd.forget_point_samples();
+        weft_graph::atomic_write_with(&path, |w| {
+            file.usd.write_clip_root(&file.clips, &mut &mut *w)
+        })
+        .map_err(|e| fail(&path, e))?;
+        for old in stale {
+            if !file.clips.frames.contains_key(&old) {
+                // Best effort: an unlisted clip left behind changes nothing the root shows.
+                let _ = std::fs::remove_file(clip_dir.join(clip_name(&stem, old)));
+            }
+        }
         cx.set("path", path.display().to_string());
         Ok(())
     }
+}
+
+/// A frame's clip file: `STEM.FRAME.usda`, the frame zero-padded to four digits as the OBJ
+/// and preview sequences are.
+fn clip_name(stem: &str, frame: i64) -> String {
+    format!("{stem}.{frame:04}.usda")
 }
 
 /// A file name prefix as a parameter gives it: non-empty, no directory parts.
@@ -511,11 +558,11 @@ pub(crate) fn register(r: &mut Registry) -> Result<(), RegistryError> {
         |_| Ok(Kernel::from_fn(obj)),
     )?;
     r.register(
-        NodeSpec::new("output.usd", "writes a .usda file with time-sampled points: Mesh prims for cloth and colliders, BasisCurves for hair (widths 2r from the Rod SEC), velocities on every prim (the solver's for simulated elements; for colliders their mean velocity over the frame, (x_f − x_{f−1})·fps), and with 'fields' connected a Volume of the fluid's OpenVDB files")
+        NodeSpec::new("output.usd", "writes a .usda stage with time-sampled points (each frame a value clip beside the root, STEM.clips/STEM.FRAME.usda): Mesh prims for cloth and colliders, BasisCurves for hair (widths 2r from the Rod SEC), velocities on every prim (the solver's for simulated elements; for colliders their mean velocity over the frame, (x_f − x_{f−1})·fps), and with 'fields' connected a Volume of the fluid's OpenVDB files")
             .input("scene", "scene", "the scene to write")
             .input_default("fields", "string", serde_json::json!(null), "the path of this frame's .vdb file (output.vdb's path): adds a Volume prim named after the files' prefix, one OpenVDBAsset per grid, its filePath time-sampled (relative to the .usda)")
             .output("path", "string", "the file written")
-            .param(ParamSpec::string("path", "out/scene.usda").doc("output file (under --out when given, else the working directory; rewritten with all frames so far after each frame)"))
+            .param(ParamSpec::string("path", "out/scene.usda").doc("the root layer (under --out when given, else the working directory), rewritten after each frame: the topology, and value clips naming each frame's points, written once to STEM.clips/STEM.FRAME.usda beside it"))
             .param(elements()),
         |_| Ok(Kernel::Compute(Box::new(UsdOut { scene: None, upstream: 0 }))),
     )?;
