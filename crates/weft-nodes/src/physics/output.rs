@@ -175,10 +175,10 @@ impl weft_graph::Compute for UsdOut {
         let stem = path
             .file_stem()
             .and_then(|s| s.to_str())
-            .filter(|s| !s.is_empty() && !s.contains('@'))
+            .filter(|s| !s.is_empty() && !s.contains('@') && !s.chars().any(char::is_control))
             .ok_or_else(|| {
                 NodeError::Failed(format!(
-                    "param 'path': {}: a USD file needs a UTF-8 name without '@' (its clips are named after it)",
+                    "param 'path': {}: a USD file needs a UTF-8 name without '@' or control characters (its clips are named after it, between '@'s)",
                     path.display()
                 ))
             })?
