@@ -169,21 +169,25 @@ fn element_names_cannot_leave_the_output_directory() {
     assert!(e.contains("node 'cloth': params: param 'name': must be a non-empty printable name without '/', '\\' or '..', got \"../escape\""), "{e}");
 }
 
+/// The small cloth graph with an `output.usd` node writing to `usd`.
+fn usd_graph(usd: &std::path::Path) -> String {
+    let text = cloth_graph(GRID, "", "0", "").replace(
+        r#""scene": "solve.scene""#,
+        r#""scene": "solve.scene", "usd": "usd.path""#,
+    );
+    text.replace(
+        r#""solve":  {"type": "solver.solid""#,
+        &format!(r#""usd": {{"type": "output.usd", "inputs": {{"scene": "solve.scene"}}, "params": {{"path": {:?}}}}}, "solve":  {{"type": "solver.solid""#, usd.to_str().unwrap()),
+    )
+}
+
 /// The clips are named after the USD file and listed between `@`s in its root: a name that
 /// would break that is refused with the parameter named, before anything is written.
 #[test]
 fn a_usd_file_name_with_an_at_sign_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let usd = dir.path().join("s@1.usda");
-    let text = cloth_graph(GRID, "", "0", "").replace(
-        r#""scene": "solve.scene""#,
-        r#""scene": "solve.scene", "usd": "usd.path""#,
-    );
-    let text = text.replace(
-        r#""solve":  {"type": "solver.solid""#,
-        &format!(r#""usd": {{"type": "output.usd", "inputs": {{"scene": "solve.scene"}}, "params": {{"path": {:?}}}}}, "solve":  {{"type": "solver.solid""#, usd.to_str().unwrap()),
-    );
-    let mut g = graph(&text);
+    let mut g = graph(&usd_graph(&usd));
     let e = g.pull("usd", Context::new(0)).unwrap_err().to_string();
     assert!(
         e.contains("node 'usd'") && e.contains("param 'path'") && e.contains("'@'"),
@@ -196,15 +200,7 @@ fn a_usd_file_name_with_an_at_sign_is_refused() {
 fn a_usd_file_forgets_frames_from_before_an_upstream_change_and_their_clips() {
     let dir = tempfile::tempdir().unwrap();
     let usd = dir.path().join("s.usda");
-    let text = cloth_graph(GRID, "", "0", "").replace(
-        r#""scene": "solve.scene""#,
-        r#""scene": "solve.scene", "usd": "usd.path""#,
-    );
-    let text = text.replace(
-        r#""solve":  {"type": "solver.solid""#,
-        &format!(r#""usd": {{"type": "output.usd", "inputs": {{"scene": "solve.scene"}}, "params": {{"path": {:?}}}}}, "solve":  {{"type": "solver.solid""#, usd.to_str().unwrap()),
-    );
-    let mut g = graph(&text);
+    let mut g = graph(&usd_graph(&usd));
     for f in 0..=4 {
         g.pull("usd", Context::new(f)).unwrap();
     }

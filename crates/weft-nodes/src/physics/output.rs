@@ -68,7 +68,7 @@ struct UsdFile {
     last: Vec<Option<(i64, Vec<[f64; 3]>)>>,
     /// The frames' clips written so far, as the root lists them.
     clips: ClipSet,
-    /// Whether the clips' manifest is on disk for these prims.
+    /// Whether the clips' directory and manifest are on disk for these prims.
     manifest: bool,
 }
 
@@ -283,8 +283,8 @@ impl weft_graph::Compute for UsdOut {
         }
         // The frame's clip (and the manifest once), then the root that lists it: each file
         // whole on disk at every moment, and the root never names a clip not yet written.
-        std::fs::create_dir_all(&clip_dir).map_err(|e| fail(&clip_dir, e))?;
         if !file.manifest {
+            std::fs::create_dir_all(&clip_dir).map_err(|e| fail(&clip_dir, e))?;
             let manifest = clip_dir.join("manifest.usda");
             weft_graph::atomic_write_with(&manifest, |w| file.usd.write_manifest(&mut &mut *w))
                 .map_err(|e| fail(&manifest, e))?;
