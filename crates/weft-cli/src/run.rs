@@ -253,7 +253,11 @@ pub fn run(registry: &Arc<Registry>, a: RunArgs) -> ExitCode {
     };
     let mut timings = Vec::with_capacity(frames.len());
     let t_run = Instant::now();
+    let ticker = (!a.quiet).then(|| crate::ticker::Ticker::start(interrupt.clone(), bar.clone()));
     for (i, &f) in frames.iter().enumerate() {
+        if let Some(t) = &ticker {
+            t.frame(f);
+        }
         let ctx = Context::at(f, a.fps);
         let t0 = Instant::now();
         let w0 = written(&g);
@@ -289,6 +293,7 @@ pub fn run(registry: &Arc<Registry>, a: RunArgs) -> ExitCode {
             None => {}
         }
     }
+    drop(ticker);
     if let Some(b) = bar {
         b.finish_and_clear();
     }

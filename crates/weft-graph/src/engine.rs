@@ -190,6 +190,9 @@ pub struct Graph {
     output_root: Option<std::path::PathBuf>,
     pub(crate) checkpoint_dir: Option<std::path::PathBuf>,
     warning_sink: Option<WarningSink>,
+    /// Per slot, its id shared for the run's activity line ([`Interrupt::activity`]), made
+    /// at its first evaluation.
+    labels: Vec<Arc<str>>,
 }
 
 /// Called with each new warning as it is raised (a command line prints it at once).
@@ -236,7 +239,17 @@ impl Graph {
             output_root: None,
             checkpoint_dir: None,
             warning_sink: None,
+            labels: Vec::new(),
         }
+    }
+
+    /// Slot `n`'s id for the activity line.
+    fn label(&mut self, n: usize) -> Arc<str> {
+        while self.labels.len() <= n {
+            let k = self.labels.len();
+            self.labels.push(Arc::from(self.slots[k].id.as_str()));
+        }
+        self.labels[n].clone()
     }
 
     /// Appends a slot; its inputs must refer to earlier slots.
@@ -587,6 +600,8 @@ impl Graph {
                 .kernel
                 .take()
                 .expect("non-source slots have a kernel");
+            let label = self.label(n);
+            let before = self.interrupt.enter(label);
             let r = match &mut kernel {
                 Kernel::Compute(k) => match self.cx(n, ctx) {
                     Ok(mut cx) => k
@@ -597,6 +612,7 @@ impl Graph {
                 },
                 Kernel::Step(k) => self.eval_stateful(n, k.as_mut(), ctx),
             };
+            self.interrupt.leave(before);
             self.slots[n].kernel = Some(kernel);
             r
         };

@@ -4,11 +4,17 @@
 //! it to stop. The engine looks at it before every node evaluation and every stateful step;
 //! long-running kernels hand [`Interrupt::checker`] to their solvers, which look at it once per
 //! iteration. A stopped evaluation fails with [`crate::NodeError::Interrupted`], so everything
-//! computed before it (cached frames, written files) stays as it was.
+//! computed before it (cached frames, written files) stays as it was. The same handle carries
+//! the other way what a long evaluation is doing ([`Interrupt::set_activity`]), for the
+//! progress line of whoever may stop it.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::{Arc, OnceLock};
+use std::sync::{Arc, Mutex, OnceLock};
 use std::time::{Duration, Instant};
+
+/// Says in a few words what a long evaluation is doing now (`substep 2 of 4, Newton
+/// iteration 37, …`), called by whoever draws a progress line, from its own thread.
+pub type Reporter = Arc<dyn Fn() -> String + Send + Sync>;
 
 #[derive(Debug, Default)]
 struct Inner {
@@ -17,6 +23,24 @@ struct Inner {
     deadline: AtomicU64,
     /// The time limit the deadline came from [ms], for the message.
     limit_ms: AtomicU64,
+    activity: Activity,
+}
+
+/// The node under evaluation and, if it set one, its reporter.
+#[derive(Default)]
+struct Activity(Mutex<Doing>);
+
+/// What [`Interrupt::enter`] returns, for [`Interrupt::leave`]: the evaluation it interrupted.
+#[derive(Clone, Default)]
+pub(crate) struct Doing {
+    node: Option<Arc<str>>,
+    reporter: Option<Reporter>,
+}
+
+impl std::fmt::Debug for Activity {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Activity")
+    }
 }
 
 /// A process-wide reference instant, so a deadline fits in an atomic integer.
@@ -80,6 +104,42 @@ impl Interrupt {
         let me = self.clone();
         Arc::new(move || me.is_set())
     }
+    /// Sets (or clears) what describes the evaluation under way: a node that may run long
+    /// (a solver's frame) sets it for the time of its evaluation, the handle's other holder
+    /// (a command's progress bar) asks [`Self::activity`] when it redraws. Shared by every
+    /// clone, so a composite's stages report to their outer graph's line.
+    pub fn set_activity(&self, reporter: Option<Reporter>) {
+        if let Ok(mut a) = self.inner.activity.0.lock() {
+            a.reporter = reporter;
+        }
+    }
+    /// The engine begins evaluating `node`: what was under way before, for [`Self::leave`].
+    pub(crate) fn enter(&self, node: Arc<str>) -> Doing {
+        let now = Doing {
+            node: Some(node),
+            reporter: None,
+        };
+        match self.inner.activity.0.lock() {
+            Ok(mut a) => std::mem::replace(&mut *a, now),
+            Err(_) => Doing::default(),
+        }
+    }
+    /// The evaluation [`Self::enter`] began has ended: `before` is under way again.
+    pub(crate) fn leave(&self, before: Doing) {
+        if let Ok(mut a) = self.inner.activity.0.lock() {
+            *a = before;
+        }
+    }
+    /// What the evaluation under way is doing: the node, and what it says of itself
+    /// (`'solve': substep 2 of 4, Newton iteration 3 …`); `None` between evaluations.
+    pub fn activity(&self) -> Option<String> {
+        let Doing { node, reporter } = self.inner.activity.0.lock().ok()?.clone();
+        let node = node?;
+        Some(match reporter {
+            Some(r) => format!("'{node}': {}", r()),
+            None => format!("'{node}'"),
+        })
+    }
     /// True when both handles are the same request.
     pub fn same(&self, other: &Interrupt) -> bool {
         Arc::ptr_eq(&self.inner, &other.inner)
@@ -89,6 +149,25 @@ impl Interrupt {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_activity_is_the_node_and_what_it_says() {
+        let i = Interrupt::new();
+        assert_eq!(i.activity(), None);
+        let j = i.clone();
+        let outer = j.enter("solve".into());
+        assert_eq!(i.activity().as_deref(), Some("'solve'"));
+        j.set_activity(Some(Arc::new(|| "Newton iteration 3".to_string())));
+        assert_eq!(i.activity().as_deref(), Some("'solve': Newton iteration 3"));
+        // An input pulled during the evaluation, then back.
+        let inner = j.enter("grid".into());
+        assert_eq!(i.activity().as_deref(), Some("'grid'"));
+        j.leave(inner);
+        assert_eq!(i.activity().as_deref(), Some("'solve': Newton iteration 3"));
+        j.set_activity(None);
+        j.leave(outer);
+        assert_eq!(i.activity(), None);
+    }
 
     #[test]
     fn stop_deadline_and_reset() {

@@ -62,7 +62,7 @@ pub use engine::{Context, Graph, NodeReport, NodeStats, RunWarning, WarningSink}
 pub use feed::FedOutput;
 pub use file::{FORMAT, SUPPORTED_VERSIONS};
 pub use files::{atomic_write, atomic_write_with};
-pub use interrupt::Interrupt;
+pub use interrupt::{Interrupt, Reporter};
 pub use node::Factory;
 pub use node::{Compute, EvalCx, EvalError, Kernel, NodeError, Step};
 pub use params::{ParamError, Params, check_param};

@@ -131,7 +131,19 @@ fn system_available() -> Option<u64> {
     proc_kib("/proc/meminfo", "MemAvailable:")
 }
 
-/// Room under the address-space limit: the soft `Max address space` less `VmSize`.
+/// Address space a thread reserves beyond what it allocates: its stack (2 MiB for rayon's
+/// workers), rounded up. Threads count against `ulimit -v` as soon as they exist, and the
+/// solver's workers start after the budget is measured. glibc's malloc arenas (a 64 MiB
+/// reservation for each thread's own, on its first allocation) would count too: the `weft`
+/// command keeps every thread on the main arena (`weft_cli::cap_malloc_arenas`; measured
+/// on a 100² sheet under 250 MiB with glibc's default of 8 arenas a core, the unreserved
+/// room let an 8 MiB allocation fail in the integrator's build), and a host under a tight
+/// `ulimit -v` should set `MALLOC_ARENA_MAX=1` likewise.
+const STACK_RESERVE: u64 = 8 * MIB;
+
+/// Room under the address-space limit: the soft `Max address space` less `VmSize`, less a
+/// stack for each worker thread and three more (the main one, the progress line's, a
+/// host's) not running yet.
 fn address_space_room() -> Option<u64> {
     let limits = std::fs::read_to_string("/proc/self/limits").ok()?;
     let line = limits
@@ -143,7 +155,20 @@ fn address_space_room() -> Option<u64> {
         .next()?
         .parse()
         .ok()?;
-    Some(soft.saturating_sub(proc_kib("/proc/self/status", "VmSize:")?))
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let field = |key: &str| -> Option<u64> {
+        status
+            .lines()
+            .find(|l| l.starts_with(key))?
+            .split_whitespace()
+            .nth(1)?
+            .parse()
+            .ok()
+    };
+    let (vm, running) = (field("VmSize:")?.saturating_mul(KIB), field("Threads:")?);
+    let expected = std::thread::available_parallelism().map_or(2, |n| n.get()) as u64 + 3;
+    let stacks = expected.saturating_sub(running) * STACK_RESERVE;
+    Some(soft.saturating_sub(vm).saturating_sub(stacks))
 }
 
 /// Room left in the process's memory cgroup (v2, else v1), when it has a limit.

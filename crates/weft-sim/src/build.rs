@@ -382,6 +382,18 @@ pub fn compile_within(
             message,
         });
     }
+    // Contact bands against the start state, now that every held vertex is known.
+    if let Some(setup) = &b.collisions {
+        let start = crate::collide::band::Start {
+            scene,
+            x: &b.x,
+            pinned: &b.system.pinned,
+            ranges: &b.ranges,
+        };
+        let mut found = Vec::new();
+        crate::collide::band::check(setup, &start, &mut |w| found.push(w))?;
+        found.into_iter().for_each(|w| b.warn(w));
+    }
     let fluid = crate::fluid::fluid_spec(scene, &b.x, max_bytes, |e, sec| {
         if let Some(r) = b.read.get_mut(e) {
             r.insert(sec);

@@ -277,6 +277,7 @@ pub struct CoupledStepper {
     gradient: Option<MacGrid>,
     samples: Vec<Sample>,
     stop: Option<weft_solid::StopCheck>,
+    progress: Option<std::sync::Arc<weft_solid::Progress>>,
 }
 
 impl CoupledStepper {
@@ -296,6 +297,14 @@ impl CoupledStepper {
         self.stop = stop;
     }
 
+    /// Sets (or clears) where the solid solve stores its progress for a progress line.
+    pub fn set_progress(&mut self, progress: Option<std::sync::Arc<weft_solid::Progress>>) {
+        if let Some(i) = &mut self.integrator {
+            i.set_progress(progress.clone());
+        }
+        self.progress = progress;
+    }
+
     /// Builds the solver structures for a solid system and a fluid domain.
     pub fn new(sys: &SolidSystem, grid: &MacGrid) -> Result<Self, StepError> {
         Ok(CoupledStepper {
@@ -307,6 +316,7 @@ impl CoupledStepper {
             gradient: None,
             samples: Vec::new(),
             stop: None,
+            progress: None,
         })
     }
 
@@ -495,13 +505,26 @@ impl CoupledStepper {
         out.v.clone_from(&start.v);
         let fail = |source| CoupledError::Solid { iteration, source };
         let integrator = match &mut self.integrator {
-            Some(i) => i,
+            Some(i) => {
+                // What the process may take now, not when the integrator was built.
+                if let Some(a) = settings.max_bytes {
+                    i.set_available(a);
+                }
+                i
+            }
             None => {
                 let mut i = Integrator::new_within(sys, settings.max_bytes).map_err(fail)?;
                 i.set_stop(self.stop.clone());
+                i.set_progress(self.progress.clone());
                 self.integrator.insert(i)
             }
         };
+        let contacts = contacts.map(|(c, stats)| {
+            if let Some(a) = settings.max_bytes {
+                c.set_available(a);
+            }
+            (c, stats)
+        });
         match contacts {
             Some((c, stats)) => c
                 .step(

@@ -190,7 +190,9 @@ impl SolidStepper {
     /// are rebuilt on the next frame.
     pub fn set_compiled(&mut self, compiled: Arc<Compiled>) -> Result<(), SimError> {
         if !same_structure(&self.compiled.system, &compiled.system) {
-            self.integrator = integrator_for(&compiled, &self.settings)?;
+            let fresh = integrator_for(&compiled, &self.settings)?;
+            let old = std::mem::replace(&mut self.integrator, fresh);
+            self.integrator.keep_hooks(old);
             self.targets = compiled.state.x.clone();
         }
         self.system = compiled.system.clone();
@@ -203,6 +205,25 @@ impl SolidStepper {
     /// answers true, [`Self::advance`] fails with [`SimError::Interrupted`].
     pub fn set_stop(&mut self, stop: Option<weft_solid::StopCheck>) {
         self.integrator.set_stop(stop);
+    }
+
+    /// Says how much more the process may allocate now [bytes] (before a frame): the limit
+    /// its integrator builds later factors within, and its contacts' room
+    /// ([`Integrator::set_available`]).
+    pub fn set_available(&mut self, available: u64) {
+        if self.settings.max_bytes.is_none() {
+            return;
+        }
+        self.settings.max_bytes = Some(available);
+        self.integrator.set_available(available);
+        if let Some(c) = &mut self.contacts {
+            c.set_available(available);
+        }
+    }
+
+    /// Sets (or clears) where the steps store their progress for a progress line.
+    pub fn set_progress(&mut self, progress: Option<Arc<weft_solid::Progress>>) {
+        self.integrator.set_progress(progress);
     }
 
     /// The compiled scene.
@@ -240,6 +261,10 @@ impl SolidStepper {
         stats: &mut FrameStats,
     ) -> Result<(), StepError> {
         self.set_targets(from, to, s1);
+        if let Some(p) = self.integrator.progress() {
+            let n = self.settings.substeps.max(1);
+            p.substep(((s0 * n as f64) as usize + 1).min(n), n, depth);
+        }
         let bdf2 = self.settings.scheme == Scheme::Bdf2 && depth == 0;
         let before = bdf2.then(|| st.clone());
         let result = if let Some(c) = &mut self.contacts {
@@ -297,8 +322,13 @@ impl SolidStepper {
                 Ok(())
             }
             Err(StepError::System(e)) => Err(StepError::System(e)),
-            // A stop is not a failure: retrying with smaller steps would only delay it.
-            Err(e @ StepError::Interrupted { .. }) => Err(e),
+            // A stop is not a failure: retrying with smaller steps would only delay it. Nor
+            // is a refusal to allocate: smaller steps need the same memory.
+            Err(
+                e @ (StepError::Interrupted { .. }
+                | StepError::TooLarge { .. }
+                | StepError::ContactsTooMany { .. }),
+            ) => Err(e),
             Err(e) if depth < self.settings.max_retries => {
                 stats.retries += 1;
                 stats.retry_causes.push((e.kind(), e.to_string()));
@@ -336,7 +366,12 @@ impl SolidStepper {
         let mut stats = FrameStats::default();
         if self.contacts.is_none() {
             let max_admm = self.settings.contact_iterations;
-            self.contacts = Contacts::new(self.compiled.clone(), scene, max_admm);
+            self.contacts = Contacts::new(
+                self.compiled.clone(),
+                scene,
+                max_admm,
+                self.settings.max_bytes,
+            );
         }
         if !self.compiled.system.rigid.is_empty() && self.settings.scheme == Scheme::Bdf2 {
             return Err(SimError::Unsupported(

@@ -37,6 +37,7 @@ mod split;
 mod tail;
 
 use crate::energy::{Local, SharedHinges};
+use crate::progress::Progress;
 pub use crate::settings::{Method, Settings, StepError, StepStats, StopCheck};
 use crate::system::{SolidSystem, State, SystemError};
 pub use contacts::{CONTACT_VERTICES, Contact, ContactSet, ContactStats};
@@ -45,6 +46,7 @@ use nalgebra::{Matrix2, Matrix3, Vector3};
 use pool::in_pool;
 use rayon::prelude::*;
 use std::cell::RefCell;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// The line search's element energies are computed in parallel from this many elements:
@@ -298,6 +300,8 @@ pub struct Integrator {
     /// positions it bounds the floating-point resolution of the objective.
     force_scale: f64,
     stop: Option<StopCheck>,
+    /// Where the steps are, for a progress line (`progress.rs`); written, never read.
+    progress: Option<Arc<Progress>>,
     /// The memory limit the pattern was built within (kept for rebuilds).
     max_bytes: Option<u64>,
     /// Blocks beyond the elements' (free index pairs, sorted, lower first): the last
@@ -331,6 +335,43 @@ impl Integrator {
         self.stop = stop;
     }
 
+    /// Sets (or clears) where the steps store their progress for a progress line.
+    pub fn set_progress(&mut self, progress: Option<Arc<Progress>>) {
+        self.progress = progress;
+    }
+
+    /// Says how much more the process may allocate now (`available` bytes, as measured by its
+    /// caller): the limit the later factors are built within (a rebuild for contacts, the
+    /// preconditioners) becomes that plus what this integrator already holds. A limit set
+    /// once at the start would not see what the process allocated since (the frames kept,
+    /// the files written): measured under a tight `ulimit -v`, the one-ring's split of a 100²
+    /// sheet failed to allocate at the first step with the limit of the setup frame. Without
+    /// a limit (`new`), none is set.
+    pub fn set_available(&mut self, available: u64) {
+        if self.max_bytes.is_some() {
+            self.max_bytes = Some(available.saturating_add(self.held_bytes()));
+        }
+    }
+
+    /// Takes `old`'s stop check and progress (an integrator built anew for another structure
+    /// answers the same stop and reports to the same line).
+    pub fn keep_hooks(&mut self, old: Integrator) {
+        self.stop = old.stop;
+        self.progress = old.progress;
+    }
+
+    /// Where the steps store their progress, if anywhere.
+    pub fn progress(&self) -> Option<&Arc<Progress>> {
+        self.progress.as_ref()
+    }
+
+    /// Stores Newton iteration `iteration`'s (1-based) step [m/s] for the progress line.
+    fn report_newton(&self, iteration: usize, step: f64) {
+        if let Some(p) = &self.progress {
+            p.newton(iteration, step);
+        }
+    }
+
     fn should_stop(&self) -> bool {
         self.stop.as_ref().is_some_and(|s| s())
     }
@@ -345,14 +386,14 @@ impl Integrator {
     /// sum over elements of (stencil size)², the factor's size is exact once the symbolic
     /// analysis has run.
     pub fn new_within(sys: &SolidSystem, max_bytes: Option<u64>) -> Result<Self, StepError> {
-        Self::build(sys, max_bytes, Vec::new(), false)
+        Self::build(sys, (max_bytes, max_bytes), Vec::new(), false)
     }
 
     /// [`Self::new`] without the two-halves split: every factorization whole (tests compare
     /// the two).
     #[cfg(test)]
     pub(crate) fn new_whole(sys: &SolidSystem) -> Result<Self, StepError> {
-        Self::build(sys, None, Vec::new(), true)
+        Self::build(sys, (None, None), Vec::new(), true)
     }
 
     /// Makes the pattern the elements' plus exactly the blocks of `extra` (pairs of free
@@ -370,17 +411,34 @@ impl Integrator {
         if extra == self.extra {
             return Ok(false);
         }
-        let (stop, joined_max, tails) = (self.stop.take(), self.joined_max, self.tails);
-        *self = Self::build(sys, self.max_bytes, extra, self.whole_only)?;
+        let (stop, progress) = (self.stop.take(), self.progress.take());
+        let (joined_max, tails) = (self.joined_max, self.tails);
+        // The new pattern and factors are built while these are held.
+        let room = self
+            .max_bytes
+            .map(|limit| limit.saturating_sub(self.held_bytes()));
+        *self = Self::build(sys, (self.max_bytes, room), extra, self.whole_only)?;
         self.stop = stop;
+        self.progress = progress;
         self.joined_max = joined_max;
         self.tails = tails;
         Ok(true)
     }
 
+    /// The memory the pattern's buffers and the factors hold, as estimated against the limit
+    /// when they were built.
+    fn held_bytes(&self) -> u64 {
+        let pre = [self.one_ring.as_ref(), self.single.as_ref()];
+        pre.into_iter()
+            .flatten()
+            .fold(self.factor.bytes(), |b, o| b.saturating_add(o.bytes()))
+    }
+
+    /// The integrator for `sys` with the pattern's `extra` blocks: `max_bytes` the limit it
+    /// keeps for the factors it builds later, `room` what this build may take.
     fn build(
         sys: &SolidSystem,
-        max_bytes: Option<u64>,
+        (max_bytes, room): (Option<u64>, Option<u64>),
         extra: Vec<(u32, u32)>,
         whole_only: bool,
     ) -> Result<Self, StepError> {
@@ -391,14 +449,9 @@ impl Integrator {
         // its later ones about 40 µs.
         let _ = rayon::current_num_threads();
         LOCAL.with(|_| ());
-        const GIB: f64 = (1u64 << 30) as f64;
-        let refuse = |what, need: u64, limit: u64| StepError::TooLarge {
-            what,
-            need_gib: need as f64 / GIB,
-            limit_gib: limit as f64 / GIB,
-        };
-        if let Some(limit) = max_bytes {
-            let mut pairs = 0u64;
+        if let Some(limit) = room {
+            // The contacts' blocks between solids, in both triangles.
+            let mut pairs = 2 * extra.len() as u64;
             sys.elements.for_each(|e| {
                 let k = e.vertices().len() as u64;
                 pairs = pairs.saturating_add(k * k);
@@ -409,7 +462,12 @@ impl Integrator {
                 .saturating_mul(8 + 9 * 16)
                 .saturating_add((sys.mass.len() as u64).saturating_mul(256));
             if need > limit {
-                return Err(refuse("the system matrix", need, limit));
+                return Err(crate::settings::too_large(
+                    "the system matrix",
+                    need,
+                    limit,
+                    crate::settings::FEWER_VERTICES,
+                ));
             }
         }
         let n = sys.mass.len();
@@ -546,7 +604,15 @@ impl Integrator {
         let at = free_layout(sys, &free_of, n_vertices);
         // Not split with rigid groups (their nodes couple every member).
         let may_split = sys.rigid.is_empty() && !whole_only;
-        let factor = Factor::new(&nbrs, &col_ptr, &row_idx, &at, may_split, max_bytes)?;
+        // Held beside the factor: the pattern's indices and values (16 bytes an entry),
+        // its slots and neighbour lists, and per vertex and per element the work buffers
+        // built after it (trial positions, the assembly's partition, the shared hinges,
+        // the length correction: 512 bytes each bounds them; measured under a tight
+        // `ulimit -v`, the hinges' table was what failed without them).
+        let held = (16 * row_idx.len() + 8 * col_ptr.len() + 4 * (slots.len() + dofs)) as u64
+            + nbrs.iter().map(|l| 24 + 4 * l.len() as u64).sum::<u64>()
+            + 512 * (n + sys.elements.len()) as u64;
+        let factor = Factor::new(&nbrs, &col_ptr, &row_idx, &at, may_split, (room, held))?;
         // Which elements may be assembled concurrently (`partition.rs`), by their free
         // vertices only (pinned ones are never written).
         let stencils: partition::Stencils = (0..sys.elements.len())
@@ -601,6 +667,7 @@ impl Integrator {
             local: Local::default(),
             force_scale: 0.0,
             stop: None,
+            progress: None,
             max_bytes,
             extra,
             groups,
@@ -1606,10 +1673,13 @@ impl Integrator {
         if self.pcg && !self.one_ring_tried {
             self.one_ring_tried = true;
             // Not paying, or too large for the memory limit: H's factor serves as before. The
-            // limit holds for all the factors together: each preconditioner gets what H's
-            // factor and the one built before it left.
+            // limit holds for all the factors together: each preconditioner gets half of what
+            // H's factor and the one built before it left. Half: they are optional, and the
+            // rest of the run (its output nodes, a rebuild for contacts) needs room too
+            // (measured under `ulimit -v` 400 MiB on a 100² sheet, a twin that took all of
+            // it left a 600 KiB preview refused).
             let max = self.max_bytes;
-            let left = |used: u64| max.map(|m| m.saturating_sub(used));
+            let left = |used: u64| max.map(|m| m.saturating_sub(used) / 2);
             self.one_ring = self
                 .build_one_ring(sys, left(self.factor.bytes()))
                 .ok()
@@ -1728,6 +1798,7 @@ impl Integrator {
             }
             stats.iterations = it + 1;
             stats.residuals.push(res);
+            self.report_newton(it + 1, res);
             // Converged: the step still takes this last (small) Newton correction, whole.
             // Stopping before it would leave a step that starts below the tolerance (a
             // body at rest whose first velocity change g·h is below it) where it started.

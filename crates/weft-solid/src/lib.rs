@@ -14,6 +14,7 @@
 pub mod contact;
 pub mod energy;
 pub mod integrator;
+pub mod progress;
 mod settings;
 pub mod slide;
 pub mod spd;
@@ -21,5 +22,7 @@ pub mod system;
 pub mod verify;
 
 pub use integrator::{Integrator, Method, Settings, StepError, StepStats, StopCheck};
+pub use progress::Progress;
+pub use settings::{FEWER_VERTICES, too_large};
 pub use slide::{OnSurface, Rail, SlideOn, Slider, Surface};
 pub use system::{Elements, RigidGroup, SolidSystem, State, SystemError, VertexDrag};

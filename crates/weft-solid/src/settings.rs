@@ -223,18 +223,42 @@ pub enum StepError {
     /// The sparse Cholesky factorization failed (the matrix was not positive definite).
     #[error("sparse Cholesky failed: {0}")]
     Factorization(String),
-    /// The system's matrix or its factor would not fit in the memory allowed
-    /// ([`Integrator::new_within`]); nothing large was allocated.
+    /// The system's matrix or its factor ([`Integrator::new_within`]), or a step's contacts,
+    /// would not fit in the memory allowed; nothing large was allocated.
+    ///
+    /// `the Cholesky factor needs about 3.17 GiB, more than the 2.00 GiB available; use fewer
+    /// vertices (a coarser mesh, fewer strands or segments)`
     #[error(
-        "{what} needs about {need_gib:.2} GiB, more than the {limit_gib:.2} GiB available; use fewer vertices (a coarser mesh, fewer strands or segments)"
+        "{what} needs about {need_gib:.2} GiB, more than the {limit_gib:.2} GiB available; {hint}"
     )]
     TooLarge {
         /// What would not fit.
-        what: &'static str,
+        what: String,
         /// Estimated need [GiB].
         need_gib: f64,
         /// The limit [GiB].
         limit_gib: f64,
+        /// What to change.
+        hint: String,
+    },
+    /// A step's contact detection would hold more contacts, or candidate pairs of
+    /// primitives, than the memory allowed lets it (a contact band wide against the scene's
+    /// spacing): it stopped before allocating them.
+    ///
+    /// `the contacts of this step would outgrow the 1.50 GiB allowed for them (more than
+    /// 393216 contacts); the widest contact band is 2 m, …`
+    #[error(
+        "the contacts of this step would outgrow the {limit_gib:.2} GiB allowed for them (more than {count} {what}); {hint}"
+    )]
+    ContactsTooMany {
+        /// What was counted: "contacts" or "pairs of primitives within reach".
+        what: &'static str,
+        /// The most that fit.
+        count: usize,
+        /// The memory allowed for them [GiB].
+        limit_gib: f64,
+        /// What to change.
+        hint: String,
     },
     /// The stop check ([`Integrator::set_stop`]) asked the step to end.
     #[error("stopped at Newton iteration {iteration}")]
@@ -257,8 +281,28 @@ impl StepError {
             StepError::Intersecting { .. } => "primitives would pass through each other",
             StepError::Factorization(_) => "factorization failed",
             StepError::TooLarge { .. } => "too large",
+            StepError::ContactsTooMany { .. } => "too many contacts",
             StepError::Interrupted { .. } => "stopped",
         }
+    }
+}
+
+/// [`StepError::TooLarge`]'s advice where the system's vertices are what is large.
+pub const FEWER_VERTICES: &str = "use fewer vertices (a coarser mesh, fewer strands or segments)";
+
+/// [`StepError::TooLarge`] for `need` bytes of `what` against `limit` bytes.
+pub fn too_large(
+    what: impl Into<String>,
+    need: u64,
+    limit: u64,
+    hint: impl Into<String>,
+) -> StepError {
+    const GIB: f64 = (1u64 << 30) as f64;
+    StepError::TooLarge {
+        what: what.into(),
+        need_gib: need as f64 / GIB,
+        limit_gib: limit as f64 / GIB,
+        hint: hint.into(),
     }
 }
 

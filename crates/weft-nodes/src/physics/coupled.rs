@@ -138,6 +138,8 @@ pub(super) struct Workspace {
     log: VecDeque<serde_json::Value>,
     /// The graph's stop handle the solvers were given.
     interrupt: Option<weft_graph::Interrupt>,
+    /// Where stage C's solid solve is, shown as the run's activity while it runs.
+    progress: Arc<weft_solid::Progress>,
 }
 
 impl Workspace {
@@ -391,6 +393,8 @@ pub(super) fn forces(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), Node
 }
 
 pub(super) fn solid(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeError> {
+    let _showing = super::solver::Showing::new(cx.interrupt(), &ws.progress);
+    ws.stepper.set_progress(Some(ws.progress.clone()));
     let stv = cx.input("step")?;
     let step = get::<StepStart>(&stv, "step")?;
     let itv = cx.input("iterate")?;
@@ -399,7 +403,8 @@ pub(super) fn solid(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeE
     let ex = &get::<ExchangeValue>(&exv, "exchange")?.0;
     let p = cx.params();
     let mut st = settings(&step.compiled);
-    st.max_bytes = Some(weft_graph::memory::available());
+    // Measured now (see `solver.rs`): the integrator adds what it holds.
+    st.max_bytes = Some(weft_graph::memory::measure());
     st.solid = Settings {
         method: match p.str("method")? {
             "explicit" => Method::Explicit,
@@ -419,7 +424,7 @@ pub(super) fn solid(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeE
     let frame = cx.frame();
     let ws = ws.for_scene(&step.compiled);
     if ws.contacts.is_none() {
-        ws.contacts = Contacts::new(step.compiled.clone(), &step.scene, max_admm);
+        ws.contacts = Contacts::new(step.compiled.clone(), &step.scene, max_admm, st.max_bytes);
     }
     let (Some(sys), targets) = (ws.system.as_mut(), &mut ws.targets) else {
         unreachable!("for_scene sets the system")

@@ -53,6 +53,27 @@ struct SolidSolver {
     interrupt: Option<weft_graph::Interrupt>,
     /// Steps and Newton iterations over every frame stepped (`frames` keeps the last 1024).
     totals: [u64; 2],
+    /// Where the stepper's steps are, shown as the run's activity during a frame.
+    progress: Arc<weft_solid::Progress>,
+}
+
+/// Shows `progress` as the run's activity ([`weft_graph::Interrupt::set_activity`]) while
+/// alive: a frame that takes minutes is seen working (its substep, Newton iteration,
+/// contacts and ADMM iterations), not only when it ends.
+pub(crate) struct Showing(weft_graph::Interrupt);
+
+impl Showing {
+    pub(crate) fn new(run: weft_graph::Interrupt, progress: &Arc<weft_solid::Progress>) -> Self {
+        let p = progress.clone();
+        run.set_activity(Some(Arc::new(move || p.line())));
+        Showing(run)
+    }
+}
+
+impl Drop for Showing {
+    fn drop(&mut self) {
+        self.0.set_activity(None);
+    }
 }
 
 fn settings(p: &Params, max_bytes: u64) -> Result<StepperSettings, weft_graph::ParamError> {
@@ -129,13 +150,13 @@ impl SolidSolver {
             s.set_compiled(compiled.clone())
                 .map_err(|e| NodeError::Failed(e.to_string()))?;
         } else if fresh {
-            self.stepper = Some(
-                SolidStepper::new(
-                    compiled.clone(),
-                    settings(p, weft_graph::memory::available())?,
-                )
-                .map_err(|e| NodeError::Failed(e.to_string()))?,
-            );
+            let mut stepper = SolidStepper::new(
+                compiled.clone(),
+                settings(p, weft_graph::memory::measure())?,
+            )
+            .map_err(|e| NodeError::Failed(e.to_string()))?;
+            stepper.set_progress(Some(self.progress.clone()));
+            self.stepper = Some(stepper);
             self.interrupt = None;
         }
         let stepper = self.stepper.as_mut().expect("just built");
@@ -203,7 +224,11 @@ impl Step for SolidSolver {
             None => prev.compiled.clone(),
         };
         let params = cx.params().clone();
+        let _showing = Showing::new(cx.interrupt(), &self.progress);
         let stepper = self.stepper(&compiled, &params, cx.interrupt())?;
+        // Measured now, not the quarter-second cache: the integrator adds what it holds to
+        // it, and a reading from before it was built would count that twice.
+        stepper.set_available(weft_graph::memory::measure());
         let (sim, stats) = stepper
             .advance(&prev.sim, &scene, frame, dt)
             .map_err(|e| match e {

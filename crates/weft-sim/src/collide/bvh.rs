@@ -78,11 +78,34 @@ impl BoxTree {
         self.bvh.refit(&mut self.workspace);
     }
 
+    /// Calls `f` with the leaves whose boxes meet the box `lo..hi`, at most `max` of them.
+    pub(crate) fn scan(
+        &self,
+        lo: &Vector3<f64>,
+        hi: &Vector3<f64>,
+        max: usize,
+        f: impl FnMut(u32),
+    ) {
+        let aabb = Aabb::new(g(lo), g(hi));
+        self.bvh.intersect_aabb(&aabb).take(max).for_each(f);
+    }
+
     /// Appends to `out` every pair (leaf of `self`, leaf of `other`) whose boxes overlap, in
-    /// traversal order (the same for the same trees). With `other` = `self` each unordered
+    /// traversal order (the same for the same trees), at most `max` of them: false when
+    /// there were more (the rest are not collected). With `other` = `self` each unordered
     /// pair comes twice and each leaf with itself.
-    pub(crate) fn pairs(&self, other: &BoxTree, out: &mut Vec<(u32, u32)>) {
-        out.extend(self.bvh.leaf_pairs(&other.bvh, |a, b| a.intersects(b)));
+    pub(crate) fn pairs(&self, other: &BoxTree, out: &mut Vec<(u32, u32)>, max: usize) -> bool {
+        let start = out.len();
+        out.extend(
+            self.bvh
+                .leaf_pairs(&other.bvh, |a, b| a.intersects(b))
+                .take(max.saturating_add(1)),
+        );
+        if out.len() - start > max {
+            out.truncate(start + max);
+            return false;
+        }
+        true
     }
 }
 
@@ -109,7 +132,7 @@ mod tests {
             .collect();
         let tree = BoxTree::new(&boxes);
         let mut found = Vec::new();
-        tree.pairs(&tree, &mut found);
+        assert!(tree.pairs(&tree, &mut found, usize::MAX));
         found.sort_unstable();
         found.dedup();
         let mut want = Vec::new();
@@ -121,5 +144,9 @@ mod tests {
             }
         }
         assert_eq!(found, want);
+        // Capped below the count: that many are kept, and the answer says some were not.
+        let mut capped = Vec::new();
+        assert!(!tree.pairs(&tree, &mut capped, 10));
+        assert_eq!(capped.len(), 10);
     }
 }

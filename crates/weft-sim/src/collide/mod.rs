@@ -19,6 +19,7 @@
 //! step is solved again (CCD by growing the active set: a vertex falling at 10 m/s onto a
 //! thin plane is stopped whatever the step).
 
+pub(crate) mod band;
 pub(crate) mod bvh;
 pub(crate) mod ccd;
 pub(crate) mod geometry;
@@ -567,6 +568,48 @@ pub struct Detector {
     live: Vec<Live>,
     candidates: Vec<u32>,
     keys: BTreeSet<Key>,
+    /// The most contacts a step may hold ([`Room`]).
+    room: usize,
+    /// Whether this step's detection stopped at `room` (taken by [`Self::take_overflow`]).
+    overflow: bool,
+}
+
+/// Bytes one contact takes at most over a step: the contact (176), its detection key, and
+/// the contact step's state for it (its active entry, ADMM's vectors, the impulses kept for
+/// the next round, the blocks it adds between solids): about 700 from the types' sizes,
+/// rounded up.
+pub const CONTACT_BYTES: u64 = 1024;
+
+/// Bytes a candidate pair of primitives takes in the broad phase between solids (the trees'
+/// pair, the filtered candidate and the narrow phase's entry: about 100), rounded up.
+pub const PAIR_BYTES: u64 = 128;
+
+/// How many contacts, and candidate pairs of primitives between solids, one step's detection
+/// may hold: a quarter of the memory allowed each (a list may hold twice its length while it
+/// grows). A contact band that takes in most of a scene (a thickness in metres where
+/// millimetres were meant) would otherwise grow these lists as the product of the primitive
+/// counts; detection stops at the room instead, and the step fails naming the band.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Room {
+    /// Contacts.
+    pub contacts: usize,
+    /// Candidate pairs of primitives.
+    pub pairs: usize,
+}
+
+impl Room {
+    /// The room within `max_bytes` (`None`: unbounded).
+    pub fn within(max_bytes: Option<u64>) -> Self {
+        let of = |each: u64| {
+            max_bytes.map_or(usize::MAX, |m| {
+                usize::try_from(m / 4 / each).unwrap_or(usize::MAX)
+            })
+        };
+        Room {
+            contacts: of(CONTACT_BYTES),
+            pairs: of(PAIR_BYTES),
+        }
+    }
 }
 
 /// Rounds of exact checking allowed per step before the step is accepted as it is (and its
@@ -606,8 +649,9 @@ fn local_positions(e: &SceneElement, to: Option<Transform>) -> Vec<V> {
 }
 
 impl Detector {
-    /// A detector for `setup`'s colliders as they are in `scene`.
-    pub fn new(setup: &CollisionSetup, scene: &[SceneElement]) -> Self {
+    /// A detector for `setup`'s colliders as they are in `scene`, holding at most `room`
+    /// contacts a step.
+    pub fn new(setup: &CollisionSetup, scene: &[SceneElement], room: usize) -> Self {
         let live = setup
             .colliders
             .iter()
@@ -628,7 +672,20 @@ impl Detector {
             live,
             candidates: Vec::new(),
             keys: BTreeSet::new(),
+            room,
+            overflow: false,
         }
+    }
+
+    /// Holds at most `room` contacts a step from now on.
+    pub fn set_room(&mut self, room: usize) {
+        self.room = room;
+    }
+
+    /// Whether detection since the last call stopped at its room: the step's contacts are
+    /// then incomplete.
+    pub fn take_overflow(&mut self) -> bool {
+        std::mem::take(&mut self.overflow)
     }
 
     /// Before stepping a frame: each collider's transforms at the frame's start and end and
@@ -684,6 +741,7 @@ impl Detector {
         out.clear();
         self.keys.clear();
         let (candidates, keys) = (&mut self.candidates, &mut self.keys);
+        let (room, mut overflow) = (self.room, false);
         let pass = Pass {
             setup,
             ranges,
@@ -707,6 +765,10 @@ impl Detector {
             if let Some((d, t, w)) = nearest(c, live, candidates, &a)
                 && d <= reach
             {
+                if out.len() >= room {
+                    overflow = true;
+                    return;
+                }
                 keys.insert((i as u32, pair.collider as u32, t, VERTEX));
                 out.push(contact(setup, &at, (t, w), x0, h, None));
             }
@@ -750,6 +812,10 @@ impl Detector {
                     && d <= reach
                 {
                     let first = sg.vertices[0] as u32;
+                    if out.len() >= room {
+                        overflow = true;
+                        return;
+                    }
                     if keys.insert((first, sg.pair.collider as u32, tp, bin(s))) {
                         // `tp` is the point's nearest triangle: its pseudo-normal tells inside
                         // from outside (a point behind a face near a convex edge included).
@@ -758,6 +824,7 @@ impl Detector {
                 }
             }
         });
+        self.overflow |= overflow;
     }
 
     /// The exact check after a step from `x0` to `x1`: every vertex's path (in each
@@ -779,6 +846,7 @@ impl Detector {
         let mut segments = 0;
         let mut deepest = 0.0f64;
         let (candidates, keys) = (&mut self.candidates, &mut self.keys);
+        let (room, mut overflow) = (self.room, false);
         let pass = Pass {
             setup,
             ranges,
@@ -830,6 +898,11 @@ impl Detector {
                         continue;
                     }
                     let crossed = crossed_here.unwrap_or_else(|| crosses(&tri));
+                    if (crossed || clearance < -1e-3 * pair.distance) && contacts.len() >= room {
+                        overflow = true;
+                        keys.remove(&(i as u32, pair.collider as u32, t, VERTEX));
+                        return;
+                    }
                     if crossed || clearance < -1e-3 * pair.distance {
                         let wa = closest_on_triangle(&a, &tri[0], &tri[1], &tri[2]);
                         contacts.push(contact(setup, &at, (t, wa), x0, h, inside_a));
@@ -875,6 +948,10 @@ impl Detector {
                 // A contact of the point that ended too close with that triangle (its plane
                 // through the point's closest at the start), unless the segment has one there.
                 let key = (sg.vertices[0] as u32, sg.pair.collider as u32, t, bin(s));
+                if clearance < -1e-3 * sg.pair.distance && contacts.len() >= room {
+                    overflow = true;
+                    return;
+                }
                 if clearance < -1e-3 * sg.pair.distance && keys.insert(key) {
                     let tri = sg.live.triangle(sg.collider, t);
                     let start = (1.0 - s) * a0 + s * a1;
@@ -895,6 +972,7 @@ impl Detector {
                 }
             },
         );
+        self.overflow |= overflow;
         Checked {
             added,
             segments,

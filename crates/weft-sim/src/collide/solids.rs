@@ -110,11 +110,19 @@ pub(crate) struct Solids {
     found: Vec<(u32, u32)>,
     keys: BTreeSet<(u8, u32, u32)>,
     times: SolidTimes,
+    /// The most candidate pairs of primitives, and contacts, a step may hold (`super::Room`).
+    room: super::Room,
+    /// Whether this step's detection stopped at `room` (taken by [`Self::take_overflow`]).
+    overflow: bool,
 }
 
 impl Solids {
     /// The detection for `setup`'s solid pairs; `None` when it has none.
-    pub(crate) fn new(setup: &CollisionSetup, ranges: &[Option<Range<usize>>]) -> Option<Self> {
+    pub(crate) fn new(
+        setup: &CollisionSetup,
+        ranges: &[Option<Range<usize>>],
+        room: super::Room,
+    ) -> Option<Self> {
         if setup.solid_pairs.is_empty() {
             return None;
         }
@@ -197,7 +205,20 @@ impl Solids {
             found: Vec::new(),
             keys: BTreeSet::new(),
             times: SolidTimes::default(),
+            room,
+            overflow: false,
         })
+    }
+
+    /// Holds at most `room` candidate pairs and contacts a step from now on.
+    pub(crate) fn set_room(&mut self, room: super::Room) {
+        self.room = room;
+    }
+
+    /// Whether detection since the last call stopped at its room (contacts or candidate
+    /// pairs past what the memory allows): the step's contacts are then incomplete.
+    pub(crate) fn take_overflow(&mut self) -> bool {
+        std::mem::take(&mut self.overflow)
     }
 
     /// The time spent since the last call (see [`SolidTimes`]).
@@ -226,11 +247,19 @@ impl Solids {
             return Vec::new();
         };
         self.found.clear();
-        if kind == VT {
-            trees[0].pairs(&trees[1], &mut self.found);
+        let max = self.room.pairs;
+        let complete = if kind == VT {
+            trees[0].pairs(&trees[1], &mut self.found, max)
         } else {
-            trees[2].pairs(&trees[2], &mut self.found);
+            // Each unordered pair comes twice.
+            let complete = trees[2].pairs(&trees[2], &mut self.found, max.saturating_mul(2));
             self.found.retain(|&(i, j)| i < j);
+            complete
+        };
+        if !complete {
+            self.overflow = true;
+            self.found.clear();
+            return Vec::new();
         }
         self.found.sort_unstable();
         let held = |vs: &[u32]| vs.iter().all(|&k| pinned[k as usize]);
@@ -386,6 +415,10 @@ impl Solids {
             if first || w.iter().all(|&b| b > 1e-9) {
                 let t = self.tris[ti as usize];
                 let pair = self.pair(setup, v, t[0]).expect("filtered above");
+                if out.len() >= self.room.contacts {
+                    self.overflow = true;
+                    break;
+                }
                 self.keys.insert((VT, v, ti));
                 out.push(vt_contact(setup, pair, v, t, w, x0, &end, h));
             }
@@ -429,6 +462,10 @@ impl Solids {
             }
             let (a, b) = (self.edges[i as usize], self.edges[j as usize]);
             let pair = self.pair(setup, a[0], b[0]).expect("filtered above");
+            if out.len() >= self.room.contacts {
+                self.overflow = true;
+                break;
+            }
             self.keys.insert((EE, i, j));
             out.push(ee_contact(setup, pair, a, b, x0, &end, h));
         }
@@ -518,7 +555,12 @@ impl Solids {
             }
             add
         };
+        let room = self.room.contacts;
         for (vi, ti, k) in vt {
+            if contacts.len() >= room {
+                self.overflow = true;
+                break;
+            }
             let (v, t, pair) = (
                 self.verts[vi as usize],
                 self.tris[ti as usize],
@@ -540,6 +582,10 @@ impl Solids {
             }
         }
         for (i, j, k) in ee {
+            if contacts.len() >= room {
+                self.overflow = true;
+                break;
+            }
             let (a, b, pair) = (
                 self.edges[i as usize],
                 self.edges[j as usize],

@@ -4,7 +4,7 @@
 //! last solve ended and ADMM from its impulses.
 
 use super::solids::Solids;
-use super::{Detector, MAX_ROUNDS, MAX_SEGMENT_ROUNDS};
+use super::{CollisionSetup, Detector, MAX_ROUNDS, MAX_SEGMENT_ROUNDS, Room};
 use crate::build::Compiled;
 use crate::error::SimError;
 use nalgebra::Vector3;
@@ -71,15 +71,26 @@ pub struct Contacts {
     pub max_admm: usize,
     /// The smallest distance any pair keeps between its surfaces [m] (`ContactSet::reach`).
     reach: f64,
+    /// What detection may hold a step, and what to change when it is not enough.
+    room: Room,
+    room_bytes: u64,
+    room_hint: String,
 }
 
 impl Contacts {
-    /// The machinery for `compiled` as its colliders are in `scene`; `None` when the scene
-    /// has no contact pairs (nothing is built).
-    pub fn new(compiled: Arc<Compiled>, scene: &[SceneElement], max_admm: usize) -> Option<Self> {
+    /// The machinery for `compiled` as its colliders are in `scene`, its contact lists held
+    /// within a share of `max_bytes` ([`Room`]); `None` when the scene has no contact pairs
+    /// (nothing is built).
+    pub fn new(
+        compiled: Arc<Compiled>,
+        scene: &[SceneElement],
+        max_admm: usize,
+        max_bytes: Option<u64>,
+    ) -> Option<Self> {
         let setup = compiled.collisions.as_ref()?;
-        let detector = Detector::new(setup, scene);
-        let solids = Solids::new(setup, &compiled.ranges);
+        let room = Room::within(max_bytes);
+        let detector = Detector::new(setup, scene, room.contacts);
+        let solids = Solids::new(setup, &compiled.ranges, room);
         let reach = setup
             .pairs
             .iter()
@@ -88,11 +99,47 @@ impl Contacts {
             .fold(f64::INFINITY, f64::min);
         Some(Contacts {
             reach,
+            room,
+            room_bytes: max_bytes.map_or(u64::MAX, |m| m / 4),
+            room_hint: widest_band(setup, scene),
             compiled,
             detector,
             solids,
             contacts: Vec::new(),
             max_admm,
+        })
+    }
+
+    /// Says how much more the process may allocate now [bytes]: the room of a step's
+    /// contact lists becomes a share of that and of what they already hold.
+    pub fn set_available(&mut self, available: u64) {
+        let held = self.contacts.capacity() as u64 * super::CONTACT_BYTES;
+        let bytes = available.saturating_add(held);
+        self.room = Room::within(Some(bytes));
+        self.room_bytes = bytes / 4;
+        self.detector.set_room(self.room.contacts);
+        if let Some(s) = &mut self.solids {
+            s.set_room(self.room);
+        }
+    }
+
+    /// The error for detection that stopped at its room (contacts, or candidate pairs of
+    /// primitives between solids, past the memory allowed), if it did since the last call.
+    fn overflowed(&mut self) -> Result<(), StepError> {
+        let solids = self.solids.as_mut().is_some_and(|s| s.take_overflow());
+        if !(self.detector.take_overflow() | solids) {
+            return Ok(());
+        }
+        let (what, count) = if self.contacts.len() >= self.room.contacts {
+            ("contacts", self.room.contacts)
+        } else {
+            ("pairs of primitives within reach", self.room.pairs)
+        };
+        Err(StepError::ContactsTooMany {
+            what,
+            count,
+            limit_gib: self.room_bytes as f64 / (1u64 << 30) as f64,
+            hint: self.room_hint.clone(),
         })
     }
 
@@ -134,7 +181,8 @@ impl Contacts {
         last_try: bool,
         cs: &mut ContactFrameStats,
     ) -> Result<StepStats, StepError> {
-        let c = &*self.compiled;
+        let compiled = self.compiled.clone();
+        let c = &*compiled;
         let setup = c.collisions.as_ref().expect("checked in new");
         let t = Instant::now();
         self.detector.detect(
@@ -150,6 +198,7 @@ impl Contacts {
             solids.detect(setup, &sys.pinned, &st.x, &st.v, h, &mut self.contacts);
         }
         cs.detection_seconds += t.elapsed().as_secs_f64();
+        self.overflowed()?;
         let mut round = 0;
         // The work of the rounds solved again, counted into the step's statistics.
         let mut discarded = StepStats::default();
@@ -223,6 +272,7 @@ impl Contacts {
                 cs.started_inside = cs.started_inside.max(k.started_inside);
             }
             cs.detection_seconds += t.elapsed().as_secs_f64();
+            self.overflowed()?;
             if let Some(solids) = &mut self.solids {
                 let times = solids.take_times();
                 cs.broad_seconds += times.broad;
@@ -269,5 +319,37 @@ impl Contacts {
             impulses = contact.impulses;
             sigma = contact.sigma;
         }
+    }
+}
+
+/// What to change when a step's contacts outgrow their room: the widest contact band, whose
+/// pair it is and where its width comes from.
+fn widest_band(setup: &CollisionSetup, scene: &[SceneElement]) -> String {
+    let name = |e: usize| scene.get(e).map_or("?", |e| e.name.as_str());
+    let widest = setup
+        .pairs
+        .iter()
+        .map(|p| {
+            let c = setup.colliders[p.collider].element;
+            (
+                p.distance,
+                format!("'{}' against '{}'", name(p.element), name(c)),
+            )
+        })
+        .chain(setup.solid_pairs.iter().map(|p| {
+            let with = if p.a == p.b {
+                format!("'{}' against itself", name(p.a))
+            } else {
+                format!("'{}' against '{}'", name(p.a), name(p.b))
+            };
+            (p.distance, with)
+        }))
+        .max_by(|a, b| a.0.total_cmp(&b.0));
+    match widest {
+        Some((d, with)) => format!(
+            "the widest contact band is {d} m, {with} (both sides' collider.thickness): a \
+             thinner band keeps fewer primitives in reach of each other"
+        ),
+        None => String::new(),
     }
 }

@@ -89,6 +89,20 @@ pub(super) struct Analysis {
 }
 
 impl Analysis {
+    /// The bytes it holds: the permutation, the lower triangle's pattern and gather indices,
+    /// and the symbolic factorization's structure.
+    pub(super) fn bytes(&self) -> u64 {
+        let own =
+            self.fwd.len() + self.lower_ptr.len() + self.lower_row.len() + self.lower_src.len();
+        let symbolic = match self.symbolic.raw() {
+            SymbolicCholeskyRaw::Supernodal(sn) => {
+                sn.row_idx().len() + 4 * (sn.supernode_begin().len() + 1)
+            }
+            SymbolicCholeskyRaw::Simplicial(_) => self.lower_row.len() + self.fwd.len(),
+        };
+        8 * (own + symbolic) as u64
+    }
+
     /// The permuted lower triangle's pattern, as faer's view.
     fn lower_pattern(&self) -> SymbolicSparseColMatRef<'_, usize> {
         let dofs = self.fwd.len();
@@ -298,14 +312,12 @@ pub(super) struct Factor {
 /// Refuses `need` bytes for `what` beyond the memory limit `max_bytes`, if any.
 fn within(need: u64, max_bytes: Option<u64>, what: &'static str) -> Result<(), StepError> {
     match max_bytes {
-        Some(limit) if need > limit => {
-            const GIB: f64 = (1u64 << 30) as f64;
-            Err(StepError::TooLarge {
-                what,
-                need_gib: need as f64 / GIB,
-                limit_gib: limit as f64 / GIB,
-            })
-        }
+        Some(limit) if need > limit => Err(crate::settings::too_large(
+            what,
+            need,
+            limit,
+            crate::settings::FEWER_VERTICES,
+        )),
         _ => Ok(()),
     }
 }
@@ -346,16 +358,36 @@ impl Factor {
     /// node, itself included, sorted; `col_ptr`/`row_idx` its DOF pattern): minimum degree,
     /// and where `at` says where the first nodes sit, nested dissection too, the one whose
     /// factor costs fewer flops kept (`order.rs`); split in two halves where `may_split` and
-    /// it pays. Refuses a factor larger than `max_bytes` (with `pattern_bytes` of the caller's
-    /// own buffers counted) before allocating it.
+    /// it pays. `held`: the bytes the caller holds for this pattern (its indices, values and
+    /// the like). Refuses, beside those, analyses whose arrays and temporaries would take
+    /// more than `max_bytes` before computing them, and a factor that would before
+    /// allocating it.
     pub(super) fn new(
         nbrs: &[Vec<u32>],
         col_ptr: &[usize],
         row_idx: &[usize],
         at: &[Vector3<f64>],
         may_split: bool,
-        max_bytes: Option<u64>,
+        (max_bytes, held): (Option<u64>, u64),
     ) -> Result<Self, StepError> {
+        // The analyses' peak, bounded before any: the ordering's copy of the vertex graph and
+        // its scratch, and per entry of the lower triangle (at most half the pattern's
+        // entries and the diagonal) 64 bytes: the kept analysis' row and gather indices
+        // (16), its transpose for faer's symbolic analysis (8) and the symbolic structure
+        // (at most 8: it was 0.18 of that on a 200² sheet), and as much again for the
+        // second analysis alive beside it (nested dissection's, or the split's two halves).
+        let dofs = col_ptr.len() - 1;
+        let lower = (row_idx.len() / 2 + dofs) as u64;
+        let graph: u64 = nbrs.iter().map(|l| 24 + 4 * l.len() as u64).sum();
+        let analyses = 64u64
+            .saturating_mul(lower)
+            .saturating_add(graph.saturating_mul(4))
+            .saturating_add(64 * dofs as u64);
+        within(
+            held.saturating_add(analyses),
+            max_bytes,
+            "the Cholesky factor's analysis",
+        )?;
         // Fill-reducing ordering on the vertex graph (a third of the size, a ninth of the
         // nonzeros of the DOF graph), expanded to keep each vertex's three DOFs together: the
         // factor's supernodes then align with the 3×3 blocks.
@@ -373,16 +405,26 @@ impl Factor {
                 analysis = other;
             }
         }
+        // Held whatever the factorization: the caller's, the analysis kept, the right-hand
+        // side.
+        let held = held
+            .saturating_add(analysis.bytes())
+            .saturating_add(8 * dofs as u64);
         // Two halves factored at once (`split.rs`) where the factor is large enough to pay
-        // for the separator's dense work.
+        // for the separator's dense work, and they fit beside what is held.
         let split = if may_split && analysis.flops >= SPLIT_MIN_FLOPS {
             let order: Vec<usize> = analysis.fwd.iter().step_by(3).map(|&d| d / 3).collect();
-            split::Split::new(nbrs, &order, col_ptr, row_idx, at)?
-                .filter(|sp| sp.flops < SPLIT_GAIN * analysis.flops)
+            split::Split::new(
+                nbrs,
+                &order,
+                (col_ptr, row_idx),
+                at,
+                SPLIT_GAIN * analysis.flops,
+                max_bytes.map(|m| m.saturating_sub(held)),
+            )?
         } else {
             None
         };
-        let dofs = analysis.fwd.len();
         let par = Par::Seq;
         let symbolic = &analysis.symbolic;
         let scratch = symbolic
@@ -395,11 +437,14 @@ impl Factor {
                     Default::default(),
                 ),
             );
-        let need = (symbolic.len_val() as u64)
-            .saturating_add(3 * analysis.lower_row.len() as u64 + 3 * dofs as u64)
-            .saturating_mul(8)
-            .saturating_add(scratch.size_bytes() as u64)
-            .saturating_add((row_idx.len() as u64).saturating_mul(16));
+        // Then the split's buffers (checked in `Split::new`) or the whole factor's and its
+        // scratch.
+        let need = match &split {
+            Some(sp) => held.saturating_add(sp.bytes),
+            None => held
+                .saturating_add(8 * (symbolic.len_val() + analysis.lower_row.len()) as u64)
+                .saturating_add(scratch.size_bytes() as u64),
+        };
         within(need, max_bytes, "the Cholesky factor")?;
         let dense = (split.is_none()
             && dofs <= DENSE_MAX
@@ -470,12 +515,14 @@ impl Factor {
         let Some(split) = self.split.as_ref() else {
             return Ok(None);
         };
-        let bytes = split.single_bytes();
+        let dofs = col_ptr.len() - 1;
+        // The split's f32 buffers, and the scaling's diagonal indices, scale and the
+        // right-hand side.
+        let bytes = split.single_bytes().saturating_add(24 * dofs as u64);
         within(bytes, max_bytes, "the single-precision Cholesky factor")?;
         let Some(split) = split.single_twin() else {
             return Ok(None);
         };
-        let dofs = col_ptr.len() - 1;
         let Some(diag) = (0..dofs)
             .map(|c| {
                 (col_ptr[c]..col_ptr[c + 1])
@@ -642,9 +689,9 @@ mod tests {
         use super::super::split::tests::{grid, spd};
         let (nbrs, _, col_ptr, row_idx) = grid(4);
         let values = spd(&col_ptr, &row_idx);
-        let mut dense = Factor::new(&nbrs, &col_ptr, &row_idx, &[], false, None).unwrap();
+        let mut dense = Factor::new(&nbrs, &col_ptr, &row_idx, &[], false, (None, 0)).unwrap();
         assert!(dense.dense.is_some());
-        let mut sparse = Factor::new(&nbrs, &col_ptr, &row_idx, &[], false, None)
+        let mut sparse = Factor::new(&nbrs, &col_ptr, &row_idx, &[], false, (None, 0))
             .unwrap()
             .sparse_only();
         dense.factor(&values).unwrap();
@@ -680,7 +727,7 @@ mod tests {
         assert!(sparse.factor(&indefinite).is_err());
         // A 6 × 6 grid's sparse factor costs well under the dense one: kept sparse.
         let (nbrs, _, col_ptr, row_idx) = grid(6);
-        let six = Factor::new(&nbrs, &col_ptr, &row_idx, &[], false, None).unwrap();
+        let six = Factor::new(&nbrs, &col_ptr, &row_idx, &[], false, (None, 0)).unwrap();
         assert!(six.dense.is_none());
     }
 }

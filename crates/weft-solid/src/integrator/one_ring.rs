@@ -164,7 +164,10 @@ impl OneRing {
                 m_ptr.push(m_row.len());
             }
         }
-        let factor = Factor::new(keep, &m_ptr, &m_row, at, may_split, max_bytes)?;
+        // Held beside its factor: M's pattern and values, and its sources (`src`, `dropped`,
+        // `diag`: at most 24 bytes a kept block).
+        let held = 8 * (2 * m_row.len() + m_ptr.len()) as u64 + 24 * kept as u64;
+        let factor = Factor::new(keep, &m_ptr, &m_row, at, may_split, (max_bytes, held))?;
         if factor.flops() > ONE_RING_GAIN * h_flops {
             return Ok(None);
         }
@@ -362,10 +365,11 @@ impl OneRing {
         (Outcome::Failed, MAX_ITERATIONS)
     }
 
-    /// The memory this preconditioner holds (its factor's estimate, M's values and CG's
-    /// vectors), for the memory limit the integrator shares among its factors.
+    /// The memory this preconditioner holds (its factor's estimate, which counts M's
+    /// pattern and values where it has them, and CG's vectors), for the memory limit the
+    /// integrator shares among its factors.
     pub(super) fn bytes(&self) -> u64 {
-        let vectors = self.values.len() + self.r.len() * 4 + self.lump.len() * 2;
+        let vectors = self.r.len() * 4 + self.lump.len() * 2;
         self.factor.bytes() + 8 * vectors as u64
     }
 
@@ -593,7 +597,7 @@ mod single_tests {
             }
         }
         // The exact solution from H's f64 factor, and its single-precision twin.
-        let mut exact = Factor::new(&nbrs, &col_ptr, &row_idx, &at, true, None).unwrap();
+        let mut exact = Factor::new(&nbrs, &col_ptr, &row_idx, &at, true, (None, 0)).unwrap();
         let mut pre = OneRing::single(&exact, &col_ptr, &row_idx, None)
             .unwrap()
             .expect("a 20 × 20 grid splits");

@@ -24,7 +24,7 @@
 //! the halves run one after the other.
 
 use super::{Analysis, StepError, solve};
-use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::{LltRegularization, cholesky_in_place};
 use faer::linalg::matmul::matmul;
 use faer::linalg::triangular_solve::{
@@ -72,36 +72,45 @@ struct HalfSingle {
 }
 
 impl Half {
-    fn new(
-        order: &[usize],
-        own_vertices: usize,
-        col_ptr: &[usize],
-        row_idx: &[usize],
-    ) -> Result<Self, StepError> {
-        let analysis = Analysis::new(order, col_ptr, row_idx)?;
-        let SymbolicCholeskyRaw::Supernodal(sn) = analysis.symbolic.raw() else {
-            return Err(StepError::Factorization(
-                "expected a supernodal analysis".into(),
-            ));
-        };
-        let narrow_tmp = solve::narrow(sn).map(|m| vec![0.0; m]);
-        let scratch = analysis
-            .symbolic
-            .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default())
-            .or(analysis.symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
+    /// The half's numeric buffers for its `analysis` (vertices in its order, the separator's
+    /// last), `own_vertices` of them before the separator's.
+    fn new(analysis: Analysis, own_vertices: usize) -> Self {
+        let narrow_tmp = solve::narrow(supernodal(&analysis)).map(|m| vec![0.0; m]);
+        let mem = MemBuffer::new(Self::scratch(&analysis));
         let dofs = analysis.fwd.len();
         let sep = dofs - 3 * own_vertices;
-        Ok(Half {
+        Half {
             own: 3 * own_vertices,
             lower_values: vec![0.0; analysis.lower_row.len()],
             l_values: vec![0.0; analysis.symbolic.len_val()],
-            mem: MemBuffer::new(scratch),
+            mem,
             x: vec![0.0; dofs],
             narrow_tmp,
             tail: vec![0.0; sep * sep],
             analysis: Arc::new(analysis),
             single: None,
-        })
+        }
+    }
+
+    /// The factorization's and the solve's scratch for `analysis`.
+    fn scratch(analysis: &Analysis) -> StackReq {
+        analysis
+            .symbolic
+            .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default())
+            .or(analysis.symbolic.solve_in_place_scratch::<f64>(1, Par::Seq))
+    }
+
+    /// The bytes a half holds with `analysis` and a separator of `m` DOFs: the analysis, and
+    /// what [`Self::new`] allocates (the gathered lower triangle and the factor, the scratch,
+    /// the solve's vectors, the tail).
+    fn bytes(analysis: &Analysis, m: usize) -> u64 {
+        let narrow = solve::narrow(supernodal(analysis)).unwrap_or(0);
+        let entries = analysis.lower_row.len() + analysis.symbolic.len_val();
+        let vectors = analysis.fwd.len() + narrow;
+        (8 * (entries + vectors) as u64)
+            .saturating_add(analysis.bytes())
+            .saturating_add(Self::scratch(analysis).size_bytes() as u64)
+            .saturating_add(8u64.saturating_mul(m as u64).saturating_mul(m as u64))
     }
 
     /// This half's single-precision twin (see [`Split::single_twin`]): the same analysis,
@@ -265,11 +274,11 @@ fn copy_tail<T: Copy + Into<f64>>(
     }
 }
 
-/// The supernodal symbolic factorization of a half (checked in `Half::new`).
+/// The supernodal symbolic factorization of a half (checked in `Split::new`).
 fn supernodal(analysis: &Analysis) -> &SymbolicSupernodalCholesky<usize> {
     match analysis.symbolic.raw() {
         SymbolicCholeskyRaw::Supernodal(sn) => sn,
-        SymbolicCholeskyRaw::Simplicial(_) => unreachable!("checked in Half::new"),
+        SymbolicCholeskyRaw::Simplicial(_) => unreachable!("checked in Split::new"),
     }
 }
 
@@ -287,19 +296,26 @@ pub(super) struct Split {
     mem: MemBuffer,
     /// Flops of the larger half's factorization plus the separator's dense work.
     pub(super) flops: f64,
+    /// The bytes its buffers take, as estimated before allocating them.
+    pub(super) bytes: u64,
 }
 
 impl Split {
     /// The split of the system whose vertex graph is `nbrs` (sorted, itself included) and
     /// whose value pattern is `col_ptr`/`row_idx` (3×3 blocks), with vertices eliminated
     /// within each half in the order they have in `order` (the whole system's ordering).
-    /// `at`: the vertices' positions, or empty. None when the split is degenerate.
+    /// `at`: the vertices' positions, or empty. None when the split is degenerate, when one
+    /// factorization of it would cost `max_flops` or more, or when its buffers would take
+    /// more than `max_bytes`: all three are known from the halves' symbolic analyses, before
+    /// any numeric buffer is allocated (a separator of m DOFs holds three dense m × m
+    /// matrices, 3.4 GB at m = 20k: a 24 × 2424 sheet cut across its length).
     pub(super) fn new(
         nbrs: &[Vec<u32>],
         order: &[usize],
-        col_ptr: &[usize],
-        row_idx: &[usize],
+        (col_ptr, row_idx): (&[usize], &[usize]),
         at: &[Vector3<f64>],
+        max_flops: f64,
+        max_bytes: Option<u64>,
     ) -> Result<Option<Self>, StepError> {
         let n = nbrs.len();
         if n < 8 {
@@ -344,6 +360,11 @@ impl Split {
         if na == 0 || nb == 0 || 4 * ns > n {
             return Ok(None);
         }
+        // The separator's dense work alone (m³ flops, below) already too dear: no analyses.
+        let mf = (3 * ns) as f64;
+        if mf * mf * mf >= max_flops {
+            return Ok(None);
+        }
         let half_order = |k: u8| -> Vec<usize> {
             let mut o: Vec<usize> = order.iter().copied().filter(|&v| side[v] == k).collect();
             o.extend(&sep_vertices);
@@ -351,10 +372,19 @@ impl Split {
         };
         // The halves' analyses are independent: concurrently (0.4 s each at 317²).
         let (a, b) = rayon::join(
-            || Half::new(&half_order(0), na, col_ptr, row_idx),
-            || Half::new(&half_order(1), nb, col_ptr, row_idx),
+            || Analysis::new(&half_order(0), col_ptr, row_idx),
+            || Analysis::new(&half_order(1), col_ptr, row_idx),
         );
         let (a, b) = (a?, b?);
+        for h in [&a, &b] {
+            if !matches!(h.symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)) {
+                return Err(StepError::Factorization(
+                    "expected a supernodal analysis".into(),
+                ));
+            }
+        }
+        // Two triangular products (m³/3 flops each) and a dense Cholesky (m³/3).
+        let flops = a.flops.max(b.flops) + mf * mf * mf;
         let sep: Vec<usize> = sep_vertices
             .iter()
             .flat_map(|&v| [3 * v, 3 * v + 1, 3 * v + 2])
@@ -373,22 +403,34 @@ impl Split {
                 }
             }
         }
-        let mf = m as f64;
-        // Two triangular products (m³/3 flops each) and a dense Cholesky (m³/3).
-        let flops = a.analysis.flops.max(b.analysis.flops) + mf * mf * mf;
         let scratch = faer::linalg::cholesky::llt::factor::cholesky_in_place_scratch::<f64>(
             m,
             Par::Seq,
             Default::default(),
         );
+        if flops >= max_flops {
+            return Ok(None);
+        }
+        let mm = 8u64.saturating_mul(m as u64).saturating_mul(m as u64);
+        let bytes = Half::bytes(&a, m)
+            .saturating_add(Half::bytes(&b, m))
+            .saturating_add(mm)
+            .saturating_add(8 * 2 * m as u64)
+            .saturating_add((std::mem::size_of::<(usize, usize, usize)>() * kss.len()) as u64)
+            .saturating_add(scratch.size_bytes() as u64);
+        // Too large to hold: the whole factor may still fit (the caller checks it).
+        if max_bytes.is_some_and(|limit| bytes > limit) {
+            return Ok(None);
+        }
         Ok(Some(Split {
-            halves: [a, b],
+            halves: [Half::new(a, na), Half::new(b, nb)],
             sep,
             kss,
             schur: vec![0.0; m * m],
             xs: vec![0.0; m],
             mem: MemBuffer::new(scratch),
             flops,
+            bytes,
         }))
     }
 
@@ -414,24 +456,34 @@ impl Split {
                 ),
             ),
             flops: self.flops,
+            bytes: self.single_bytes(),
         })
     }
 
     /// The bytes [`Self::single_twin`] allocates: each half's f32 lower triangle and factor
-    /// (4 bytes an entry), its tail and gram (f64, m² each), its vectors, and the separator's
-    /// dense matrix and its copy of K_SS's entries.
+    /// (4 bytes an entry), its tail and gram (f64, m² each), its vectors and f32 scratch, and
+    /// the separator's dense matrix, vectors and copy of K_SS's entries.
     pub(super) fn single_bytes(&self) -> u64 {
         let m = self.sep.len() as u64;
         let halves: u64 = self
             .halves
             .iter()
             .map(|h| {
-                let entries = (h.analysis.lower_row.len() + h.analysis.symbolic.len_val()) as u64;
-                4 * entries + 16 * m * m + 12 * h.x.len() as u64
+                let symbolic = &h.analysis.symbolic;
+                let entries = (h.analysis.lower_row.len() + symbolic.len_val()) as u64;
+                let scratch = symbolic
+                    .factorize_numeric_llt_scratch::<f32>(Par::Seq, Default::default())
+                    .or(symbolic.solve_in_place_scratch::<f32>(1, Par::Seq));
+                4 * entries + 16 * m * m + 12 * h.x.len() as u64 + scratch.size_bytes() as u64
             })
             .sum();
         let kss = std::mem::size_of::<(usize, usize, usize)>() * self.kss.len();
-        halves + 8 * m * m + kss as u64
+        let dense = faer::linalg::cholesky::llt::factor::cholesky_in_place_scratch::<f64>(
+            m as usize,
+            Par::Seq,
+            Default::default(),
+        );
+        halves + 8 * m * m + 16 * m + kss as u64 + dense.size_bytes() as u64
     }
 
     /// Factors `values` (the whole pattern's): whether the matrix is positive definite.
@@ -634,9 +686,16 @@ pub(super) mod tests {
         let (nbrs, at, col_ptr, row_idx) = grid(k);
         let order: Vec<usize> = (0..k * k).collect();
         for layout in [&at[..], &[]] {
-            let mut sp = Split::new(&nbrs, &order, &col_ptr, &row_idx, layout)
-                .unwrap()
-                .expect("a 20 × 20 grid splits");
+            let mut sp = Split::new(
+                &nbrs,
+                &order,
+                (&col_ptr, &row_idx),
+                layout,
+                f64::INFINITY,
+                None,
+            )
+            .unwrap()
+            .expect("a 20 × 20 grid splits");
             // The separator: two grid lines (the two-ring), 40 vertices.
             assert_eq!(sp.sep.len(), 3 * 2 * k);
             let values = spd(&col_ptr, &row_idx);
@@ -690,14 +749,65 @@ pub(super) mod tests {
         assert!(far < 1e-9, "the split's steps differ by {far:e} m");
     }
 
+    /// The split's buffers (three dense m × m blocks of its separator among them) are known
+    /// from its analyses before any is allocated: within a limit below them it is not built,
+    /// and the whole factor, which needs less, serves; a split that costs more flops than
+    /// allowed is not built either.
+    #[test]
+    fn a_split_that_would_not_fit_or_pay_is_not_built() {
+        let k = 20;
+        let (nbrs, at, col_ptr, row_idx) = grid(k);
+        let order: Vec<usize> = (0..k * k).collect();
+        let new = |flops: f64, bytes: Option<u64>| {
+            Split::new(&nbrs, &order, (&col_ptr, &row_idx), &at, flops, bytes).unwrap()
+        };
+        let sp = new(f64::INFINITY, None).expect("a 20 × 20 grid splits");
+        // The separator's three m × m blocks alone (m = 120 DOFs).
+        let m = sp.sep.len() as u64;
+        assert!(sp.bytes > 24 * m * m, "{} bytes", sp.bytes);
+        assert!(new(f64::INFINITY, Some(sp.bytes)).is_some());
+        assert!(new(f64::INFINITY, Some(sp.bytes - 1)).is_none());
+        assert!(new(sp.flops, None).is_none());
+        // The integrator's factor within a limit: split or whole, its estimate within it.
+        use crate::integrator::factor::Factor;
+        let whole = Factor::new(&nbrs, &col_ptr, &row_idx, &at, false, (None, 0)).unwrap();
+        for limit in [whole.bytes(), 3 * sp.bytes, u64::MAX] {
+            let f = Factor::new(&nbrs, &col_ptr, &row_idx, &at, true, (Some(limit), 0)).unwrap();
+            assert!(f.bytes() <= limit, "{} > {limit}", f.bytes());
+        }
+        // Below the whole factor too: refused (its analysis' bound, or the factor itself),
+        // with the numbers.
+        match Factor::new(
+            &nbrs,
+            &col_ptr,
+            &row_idx,
+            &at,
+            true,
+            (Some(whole.bytes() / 2), 0),
+        ) {
+            Err(StepError::TooLarge { what, .. }) => {
+                assert!(what.starts_with("the Cholesky factor"), "{what}")
+            }
+            Err(e) => panic!("{e}"),
+            Ok(_) => panic!("a factor over its limit was built"),
+        }
+    }
+
     #[test]
     fn small_or_unseparable_systems_are_not_split() {
         let (nbrs, at, col_ptr, row_idx) = grid(2);
         let order: Vec<usize> = (0..4).collect();
         assert!(
-            Split::new(&nbrs, &order, &col_ptr, &row_idx, &at)
-                .unwrap()
-                .is_none()
+            Split::new(
+                &nbrs,
+                &order,
+                (&col_ptr, &row_idx),
+                &at,
+                f64::INFINITY,
+                None
+            )
+            .unwrap()
+            .is_none()
         );
         // Every vertex coupled to every other: the separator would be a whole half.
         let n = 16;
@@ -706,9 +816,16 @@ pub(super) mod tests {
         let (col_ptr, row_idx) = pattern(&nbrs);
         let order: Vec<usize> = (0..n).collect();
         assert!(
-            Split::new(&nbrs, &order, &col_ptr, &row_idx, &[])
-                .unwrap()
-                .is_none()
+            Split::new(
+                &nbrs,
+                &order,
+                (&col_ptr, &row_idx),
+                &[],
+                f64::INFINITY,
+                None
+            )
+            .unwrap()
+            .is_none()
         );
     }
 }
