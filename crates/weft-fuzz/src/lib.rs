@@ -41,16 +41,31 @@ pub fn default_seed_dirs() -> Vec<PathBuf> {
     ]
 }
 
-/// Every `*.json` in `dirs` as a seed, with the `*.obj` files of its directory beside it.
+/// Every `*.json` in `dirs` as a seed, with the `*.obj` files of its directory beside it; a
+/// `*.json` file among `dirs` is that one seed (with the `*.obj` files beside it), so a run
+/// can fuzz a few examples: `--seeds graphs/cloth_drape.json --seeds graphs/cloth_pile.json`.
 pub fn load_seeds(dirs: &[PathBuf]) -> std::io::Result<Vec<Seed>> {
     let mut seeds = Vec::new();
     for dir in dirs {
         let mut json = Vec::new();
         let mut objs = Vec::new();
-        for e in std::fs::read_dir(dir)? {
+        let (folder, only) = if dir.is_file() {
+            (
+                dir.parent().unwrap_or(Path::new(".")).to_path_buf(),
+                Some(dir),
+            )
+        } else {
+            (dir.clone(), None)
+        };
+        let folder = if folder.as_os_str().is_empty() {
+            PathBuf::from(".")
+        } else {
+            folder
+        };
+        for e in std::fs::read_dir(&folder)? {
             let p = e?.path();
             match p.extension().and_then(|x| x.to_str()) {
-                Some("json") => json.push(p),
+                Some("json") if only.is_none_or(|o| o == &p || same_file(o, &p)) => json.push(p),
                 Some("obj") => objs.push(p),
                 _ => {}
             }
@@ -77,6 +92,13 @@ pub fn load_seeds(dirs: &[PathBuf]) -> std::io::Result<Vec<Seed>> {
         }
     }
     Ok(seeds)
+}
+
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    }
 }
 
 /// The registry's node type names (what a type mutation picks from).

@@ -44,7 +44,8 @@ struct Opts {
     /// Frames each case runs.
     #[arg(long, default_value = "0..1", global = true)]
     frames: String,
-    /// Seed directories [default: graphs/ and tests/fuzz/seeds/].
+    /// Seed directories, or single seed graph files [default: graphs/, tests/fuzz/seeds/ and
+    /// the verification scenes].
     #[arg(long = "seeds", global = true)]
     seeds: Vec<PathBuf>,
     /// Copy every failing case here [default: fuzz-out/failures].

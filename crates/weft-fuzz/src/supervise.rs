@@ -33,13 +33,43 @@ pub enum Kind {
     Abort,
     /// No answer within the hang limit: a defect.
     Hang,
+    /// Stopped by its time limit without having said why it runs long: no warning before
+    /// (a cost estimate, a contact band taking in the scene) and no progress line inside
+    /// the frame it was stopped in (what the evaluation under way is doing). A user would
+    /// have watched it for the time limit with nothing to go on: a defect.
+    Silent,
 }
 
 impl Kind {
     /// True for the outcomes that are defects in Weft.
     pub fn is_defect(self) -> bool {
-        matches!(self, Kind::Panic | Kind::Abort | Kind::Hang)
+        matches!(self, Kind::Panic | Kind::Abort | Kind::Hang | Kind::Silent)
     }
+}
+
+/// Whether a run stopped by its time limit of `limit` seconds did so without a word of why
+/// it ran long: no warning and no progress line of the frame under way (`frame 3: 6 s so
+/// far: …`), though the frame it was stopped in ran long enough for one to be due
+/// (`weft_cli::PROGRESS_FIRST_LINE`, and a second for the stop itself; the frames finished
+/// before are in its `frame F (i/n): T ms` lines).
+fn silent(stderr: &str, limit: f64) -> bool {
+    let said = stderr
+        .lines()
+        .any(|l| l.starts_with("warning: ") || l.contains(" s so far: "));
+    let done: f64 = stderr
+        .lines()
+        .filter(|l| l.starts_with("frame ") && l.ends_with(" ms"))
+        .filter_map(|l| {
+            l.rsplit(": ")
+                .next()?
+                .strip_suffix(" ms")?
+                .parse::<f64>()
+                .ok()
+        })
+        .sum::<f64>()
+        / 1e3;
+    let due = weft_cli::PROGRESS_FIRST_LINE.as_secs_f64() + 1.0;
+    !said && limit - done >= due
 }
 
 /// One case's outcome.
@@ -98,7 +128,7 @@ pub struct Report {
 }
 
 impl Report {
-    /// Number of defects (panics, aborts, hangs).
+    /// Number of defects (panics, aborts, hangs, silent long runs).
     pub fn defect_count(&self) -> usize {
         self.defects.len()
     }
@@ -131,7 +161,10 @@ impl Report {
         for (k, n) in e {
             s += &format!("  {n:>6}  {k}\n");
         }
-        s += &format!("defects (panic, abort, hang): {}\n", self.defects.len());
+        s += &format!(
+            "defects (panic, abort, hang, silent): {}\n",
+            self.defects.len()
+        );
         for d in &self.defects {
             s += &format!("  {d}\n");
         }
@@ -380,10 +413,20 @@ fn run_case(
                     Some(2) => Kind::Refused,
                     _ => Kind::Failed,
                 };
+                let err = if kind == Kind::Ok {
+                    String::new()
+                } else {
+                    stderr()
+                };
                 let detail = if kind == Kind::Ok {
                     String::new()
                 } else {
-                    category(&stderr())
+                    category(&err)
+                };
+                let kind = if detail == "time limit reached" && silent(&err, cfg.time_limit) {
+                    Kind::Silent
+                } else {
+                    kind
                 };
                 Outcome {
                     kind,
@@ -571,6 +614,26 @@ pub fn case_dirs(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
 #[cfg(test)]
 mod tests {
     use super::category;
+
+    #[test]
+    fn a_time_limited_run_must_have_said_why_it_ran_long() {
+        let stopped = "error: node 'solve' at frame 1: time limit of 10 s reached";
+        assert!(super::silent(stopped, 10.0));
+        assert!(super::silent(
+            &format!("frame 0 (1/2): 20.5 ms\n{stopped}"),
+            10.0
+        ));
+        // Frame 1 ran 10 − 7.5 s, too short for its first progress line.
+        assert!(!super::silent(
+            &format!("frame 0 (1/2): 7500.0 ms\n{stopped}"),
+            10.0
+        ));
+        assert!(!super::silent(stopped, 3.0));
+        let line = "frame 1: 5 s so far: 'solve': substep 1 of 4";
+        assert!(!super::silent(&format!("{line}\n{stopped}"), 10.0));
+        let warned = "warning: node 'solve' at frame 0: a rough cost model …";
+        assert!(!super::silent(&format!("{warned}\n{stopped}"), 10.0));
+    }
 
     #[test]
     fn errors_are_counted_by_what_they_report() {

@@ -18,7 +18,8 @@ use std::time::Instant;
 static PANIC: Mutex<Option<String>> = Mutex::new(None);
 
 /// What `weft` is asked to do with each case: run the graph file for two frames, writing under
-/// `out/`.
+/// `out/`. Not `--quiet`: the progress lines a long frame prints to stderr are what tells a
+/// long run that says what it is doing from a silent one (`Kind::Silent`).
 pub fn weft_args(frames: &str, time_limit: Option<f64>) -> Vec<String> {
     let mut a: Vec<String> = [
         "weft",
@@ -28,7 +29,6 @@ pub fn weft_args(frames: &str, time_limit: Option<f64>) -> Vec<String> {
         frames,
         "--out",
         "out",
-        "--quiet",
     ]
     .iter()
     .map(|s| s.to_string())

@@ -31,7 +31,10 @@ fn the_regression_corpus_replays_without_a_defect() {
     let (ok, text) = fuzz(&["--time-limit", "3", "replay", corpus.to_str().unwrap()]);
     assert!(ok, "{text}");
     assert!(text.contains(&format!("{n} cases in")), "{text}");
-    assert!(text.contains("defects (panic, abort, hang): 0"), "{text}");
+    assert!(
+        text.contains("defects (panic, abort, hang, silent): 0"),
+        "{text}"
+    );
 }
 
 #[test]
@@ -39,5 +42,8 @@ fn a_fresh_seeded_batch_finds_no_defect() {
     let (ok, text) = fuzz(&["--cases", "300", "--seed", "20261123", "--time-limit", "5"]);
     assert!(ok, "{text}");
     assert!(text.contains("300 cases in"), "{text}");
-    assert!(text.contains("defects (panic, abort, hang): 0"), "{text}");
+    assert!(
+        text.contains("defects (panic, abort, hang, silent): 0"),
+        "{text}"
+    );
 }
