@@ -73,7 +73,6 @@ pub struct Contacts {
     reach: f64,
     /// What detection may hold a step, and what to change when it is not enough.
     room: Room,
-    room_bytes: u64,
     room_hint: String,
 }
 
@@ -100,7 +99,6 @@ impl Contacts {
         Some(Contacts {
             reach,
             room,
-            room_bytes: max_bytes.map_or(u64::MAX, |m| m / 4),
             room_hint: widest_band(setup, scene),
             compiled,
             detector,
@@ -116,7 +114,6 @@ impl Contacts {
         let held = self.contacts.capacity() as u64 * super::CONTACT_BYTES;
         let bytes = available.saturating_add(held);
         self.room = Room::within(Some(bytes));
-        self.room_bytes = bytes / 4;
         self.detector.set_room(self.room.contacts);
         if let Some(s) = &mut self.solids {
             s.set_room(self.room);
@@ -130,15 +127,19 @@ impl Contacts {
         if !(self.detector.take_overflow() | solids) {
             return Ok(());
         }
-        let (what, count) = if self.contacts.len() >= self.room.contacts {
-            ("contacts", self.room.contacts)
+        let (what, count, each) = if self.contacts.len() >= self.room.contacts {
+            ("contacts", self.room.contacts, super::CONTACT_BYTES)
         } else {
-            ("pairs of primitives within reach", self.room.pairs)
+            (
+                "pairs of primitives within reach",
+                self.room.pairs,
+                super::PAIR_BYTES,
+            )
         };
         Err(StepError::ContactsTooMany {
             what,
             count,
-            limit_gib: self.room_bytes as f64 / (1u64 << 30) as f64,
+            limit_gib: (count as f64 * each as f64) / (1u64 << 30) as f64,
             hint: self.room_hint.clone(),
         })
     }
