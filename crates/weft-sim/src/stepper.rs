@@ -14,7 +14,7 @@ use nalgebra::Vector3;
 use std::sync::Arc;
 use std::time::Instant;
 use weft_scene::{SceneElement, Transform};
-use weft_solid::{Integrator, Method, Settings, SolidSystem, State, StepError};
+use weft_solid::{Integrator, Method, Next, Settings, SolidSystem, State, StepError};
 
 /// The time integration of the implicit steps.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -321,15 +321,9 @@ impl SolidStepper {
                 *history = before.map(|b| (b, h));
                 Ok(())
             }
-            Err(StepError::System(e)) => Err(StepError::System(e)),
-            // A stop is not a failure: retrying with smaller steps would only delay it. Nor
-            // is a refusal to allocate: smaller steps need the same memory.
-            Err(
-                e @ (StepError::Interrupted { .. }
-                | StepError::TooLarge { .. }
-                | StepError::ContactsTooMany { .. }),
-            ) => Err(e),
-            Err(e) if depth < self.settings.max_retries => {
+            // The step's own answer: only what a smaller step may cure is retried smaller
+            // (a stop, an inconsistent system or a refusal to allocate is not).
+            Err(e) if e.next() == Next::RetrySmaller && depth < self.settings.max_retries => {
                 stats.retries += 1;
                 stats.retry_causes.push((e.kind(), e.to_string()));
                 let mid = 0.5 * (s0 + s1);
@@ -405,14 +399,14 @@ impl SolidStepper {
                 0,
                 &mut stats,
             )
-            .map_err(|e| match e {
-                StepError::Interrupted { .. } => SimError::Interrupted {
+            .map_err(|e| match e.next() {
+                Next::Stop => SimError::Interrupted {
                     frame,
                     substep: k + 1,
                     substeps: n,
                     detail: e.to_string(),
                 },
-                e => SimError::StepFailed {
+                Next::RetrySmaller | Next::Fail => SimError::StepFailed {
                     frame,
                     substep: k + 1,
                     substeps: n,

@@ -23,6 +23,6 @@ pub mod verify;
 
 pub use integrator::{Integrator, Method, Settings, StepError, StepStats, StopCheck};
 pub use progress::Progress;
-pub use settings::{FEWER_VERTICES, too_large};
+pub use settings::{FEWER_VERTICES, Next, too_large};
 pub use slide::{OnSurface, Rail, SlideOn, Slider, Surface};
 pub use system::{Elements, RigidGroup, SolidSystem, State, SystemError, VertexDrag};

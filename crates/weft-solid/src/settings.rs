@@ -268,7 +268,37 @@ pub enum StepError {
     },
 }
 
+/// What the caller of a failed step does next: the solver's answer (Houdini's solvers answer
+/// success, repeat, substep or fail), so a caller acts on it instead of on a list of error
+/// variants, and a new variant is classified where it is defined.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Next {
+    /// A smaller step may succeed: the caller may retry the step in parts.
+    RetrySmaller,
+    /// No smaller step would help (the system is inconsistent, its memory would not fit):
+    /// report it.
+    Fail,
+    /// The caller asked the step to stop: stop, keeping what was done.
+    Stop,
+}
+
 impl StepError {
+    /// What the caller does next (see [`Next`]).
+    pub fn next(&self) -> Next {
+        match self {
+            StepError::NonFinite { .. }
+            | StepError::NotConverged { .. }
+            | StepError::ContactsNotConverged { .. }
+            | StepError::Diverged { .. }
+            | StepError::Intersecting { .. }
+            | StepError::Factorization(_) => Next::RetrySmaller,
+            StepError::System(_)
+            | StepError::TooLarge { .. }
+            | StepError::ContactsTooMany { .. } => Next::Fail,
+            StepError::Interrupted { .. } => Next::Stop,
+        }
+    }
+
     /// A short name of the failure's kind, for counting retried steps by cause (the message,
     /// [`std::fmt::Display`], has the numbers).
     pub fn kind(&self) -> &'static str {
