@@ -65,6 +65,9 @@ enum Command {
         /// Only node types whose name contains this text.
         filter: Option<String>,
     },
+    /// Print the JSON Schema of graph files (draft 2020-12), generated from the node
+    /// registry: point an editor at it to complete and check graph files as they are typed.
+    Schema,
     /// Run a benchmark suite.
     Bench(weft_bench::BenchArgs),
 }
@@ -108,10 +111,26 @@ fn dispatch(command: Command) -> ExitCode {
         Command::Run(a) => run::run(&registry, a),
         Command::Validate { graphs } => validate(&registry, &graphs),
         Command::Nodes { json, filter } => {
-            print!("{}", nodes::render(&registry, json, filter.as_deref()));
-            ExitCode::SUCCESS
+            print_out(&nodes::render(&registry, json, filter.as_deref()))
+        }
+        Command::Schema => {
+            let schema = weft_graph::graph_schema(&registry);
+            print_out(&(serde_json::to_string_pretty(&schema).unwrap_or_default() + "\n"))
         }
         Command::Bench(a) => weft_bench::run(&registry, a),
+    }
+}
+
+/// Writes `text` to stdout: a reader that closes the pipe early (`weft schema | head`) ends
+/// the output, not the process with a panic.
+fn print_out(text: &str) -> ExitCode {
+    use std::io::Write;
+    match std::io::stdout().lock().write_all(text.as_bytes()) {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => {
+            eprintln!("error: cannot write the output: {e}");
+            ExitCode::from(1)
+        }
+        _ => ExitCode::SUCCESS,
     }
 }
 

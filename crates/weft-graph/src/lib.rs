@@ -53,6 +53,7 @@ mod paths;
 mod persist;
 mod registry;
 mod report;
+mod schema;
 mod spec;
 mod value;
 
@@ -68,5 +69,6 @@ pub use node::{Compute, EvalCx, EvalError, Kernel, NodeError, Step};
 pub use params::{ParamError, Params, check_param};
 pub use paths::resolve_output;
 pub use registry::{NodeType, Registry, RegistryError};
+pub use schema::graph_schema;
 pub use spec::{NodeSpec, ParamKind, ParamSpec, PortSpec, TimeClass, TypeRef};
 pub use value::{PortType, Value, builtin_port_types};
