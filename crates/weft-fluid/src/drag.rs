@@ -11,7 +11,7 @@
 //! the seed's e∥ plays for rods: lift then turns the part of the drag across the face).
 //! Every function also returns the derivative the implicit solid solve needs.
 
-use crate::grid::FluidError;
+use weft_scene::Drag;
 
 /// Fluid material: density and dynamic viscosity.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -35,83 +35,21 @@ impl FluidProperties {
     };
 }
 
-/// The Drag SEC's parameters.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct DragParams {
-    /// Global drag scale ξ_D.
-    pub xi_d: f64,
-    /// Normal drag scale ξ⊥.
-    pub xi_perp: f64,
-    /// Tangential drag scale ξ∥.
-    pub xi_par: f64,
-    /// Nonlinear (inertial) term scale ξ_N (0: linear Darcy drag only).
-    pub xi_n: f64,
-    /// Lift scale ξ_L.
-    pub xi_l: f64,
-    /// Fibre diameter D [m].
-    pub diameter: f64,
-    /// Material (solid) fraction γ in [0, 1).
-    pub gamma: f64,
-    /// Drag degree c: the exponent of the Reynolds number in the nonlinear term.
-    pub degree: f64,
-}
-
-impl Default for DragParams {
-    fn default() -> Self {
-        DragParams {
-            xi_d: 1.0,
-            xi_perp: 1.0,
-            xi_par: 0.5,
-            xi_n: 0.0,
-            xi_l: 0.0,
-            diameter: 1e-4,
-            gamma: 0.1,
-            degree: 1.0,
-        }
-    }
-}
-
-impl DragParams {
-    /// Checks every parameter's range.
-    pub fn validate(&self) -> Result<(), FluidError> {
-        let nonneg = |name: &'static str, x: f64| {
-            if x.is_finite() && x >= 0.0 {
-                Ok(())
-            } else {
-                Err(FluidError::Parameter {
-                    name,
-                    message: format!("must be finite and >= 0, got {x}"),
-                })
-            }
-        };
-        nonneg("drag.xi_d", self.xi_d)?;
-        nonneg("drag.xi_perp", self.xi_perp)?;
-        nonneg("drag.xi_par", self.xi_par)?;
-        nonneg("drag.xi_n", self.xi_n)?;
-        nonneg("drag.xi_l", self.xi_l)?;
-        nonneg("drag.degree", self.degree)?;
-        if !(self.diameter.is_finite() && self.diameter > 0.0) {
-            return Err(FluidError::Parameter {
-                name: "drag.diameter",
-                message: format!("must be > 0 m, got {}", self.diameter),
-            });
-        }
-        if !(0.0..1.0).contains(&self.gamma) {
-            return Err(FluidError::Parameter {
-                name: "drag.gamma",
-                message: format!("must be in [0, 1), got {}", self.gamma),
-            });
-        }
-        Ok(())
-    }
-
+/// The drag law of eqs. 1–2 on the Drag SEC's parameters (`weft_scene::Drag`, declared
+/// once there with its defaults and ranges; `SecFields::check` validates it).
+pub trait DragLaw {
     /// 1/k_l (eq. 2) for ξ_l.
-    pub fn inverse_permeability(&self, xi_l: f64) -> f64 {
+    fn inverse_permeability(&self, xi_l: f64) -> f64;
+    /// C_l and dC_l/d|Δv| (eq. 1) for inverse permeability `kinv` at speed `speed`.
+    fn coefficient(&self, fluid: &FluidProperties, kinv: f64, speed: f64) -> (f64, f64);
+}
+
+impl DragLaw for Drag {
+    fn inverse_permeability(&self, xi_l: f64) -> f64 {
         self.xi_d / 1e4 * xi_l
     }
 
-    /// C_l and dC_l/d|Δv| (eq. 1) for inverse permeability `kinv` at speed `speed`.
-    pub fn coefficient(&self, fluid: &FluidProperties, kinv: f64, speed: f64) -> (f64, f64) {
+    fn coefficient(&self, fluid: &FluidProperties, kinv: f64, speed: f64) -> (f64, f64) {
         if kinv <= 0.0 {
             return (0.0, 0.0);
         }
@@ -120,30 +58,30 @@ impl DragParams {
             // The nonlinear term vanishes at zero speed for c > 0 (and its slope too for
             // c > 1; for c = 1 the one-sided slope is the constant below).
             let slope = if self.xi_n > 0.0 && self.degree == 1.0 {
-                self.nonlinear_prefactor(kinv) * fluid.density * self.diameter / fluid.viscosity
+                nonlinear_prefactor(self, kinv) * fluid.density * self.diameter / fluid.viscosity
             } else {
                 0.0
             };
             let at_zero = if self.xi_n > 0.0 && self.degree == 0.0 {
-                self.nonlinear_prefactor(kinv)
+                nonlinear_prefactor(self, kinv)
             } else {
                 0.0
             };
             return (lin + at_zero, slope);
         }
         let re = fluid.density * self.diameter * speed / fluid.viscosity;
-        let pre = self.nonlinear_prefactor(kinv);
+        let pre = nonlinear_prefactor(self, kinv);
         let c = self.degree;
         let nl = pre * re.powf(c);
         // d(re^c)/d|Δv| = c re^(c−1) · ρD/μ.
         let dnl = pre * c * re.powf(c - 1.0) * fluid.density * self.diameter / fluid.viscosity;
         (lin + nl, dnl)
     }
+}
 
-    fn nonlinear_prefactor(&self, kinv: f64) -> f64 {
-        // ξ_N · 1.75/√(150 k) · (1 − γ)^(−3/2), with k = 1/kinv.
-        self.xi_n * 1.75 * (kinv / 150.0).sqrt() * (1.0 - self.gamma).powf(-1.5)
-    }
+fn nonlinear_prefactor(p: &Drag, kinv: f64) -> f64 {
+    // ξ_N · 1.75/√(150 k) · (1 − γ)^(−3/2), with k = 1/kinv.
+    p.xi_n * 1.75 * (kinv / 150.0).sqrt() * (1.0 - p.gamma).powf(-1.5)
 }
 
 /// The solid's shape for drag: a rod segment (unit tangent) or a cloth face (unit normal).
@@ -170,7 +108,7 @@ fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 /// relative to the fluid (eq. 3): the force [N] and its derivative ∂f/∂(Δv) [N·s/m]
 /// (row-major 3×3; symmetric negative semidefinite in the linear branch).
 pub fn drag_force(
-    params: &DragParams,
+    params: &Drag,
     fluid: &FluidProperties,
     shape: Shape,
     volume: f64,
@@ -236,8 +174,8 @@ mod tests {
 
     const W: FluidProperties = FluidProperties::WATER;
 
-    fn params(xi_n: f64, c: f64) -> DragParams {
-        DragParams {
+    fn params(xi_n: f64, c: f64) -> Drag {
+        Drag {
             xi_d: 2.0,
             xi_perp: 1.5,
             xi_par: 0.4,
@@ -342,29 +280,20 @@ mod tests {
 
     #[test]
     fn out_of_range_parameters_are_named() {
-        let mut p = DragParams::default();
-        assert!(p.validate().is_ok());
+        use weft_scene::fields::SecFields;
+        let mut p = Drag::default();
+        assert!(p.check().is_ok());
         p.gamma = 1.0;
-        assert!(p.validate().unwrap_err().to_string().contains("drag.gamma"));
-        p = DragParams {
+        assert_eq!(p.check().unwrap_err().field, "drag.gamma");
+        p = Drag {
             diameter: 0.0,
             ..Default::default()
         };
-        assert!(
-            p.validate()
-                .unwrap_err()
-                .to_string()
-                .contains("drag.diameter")
-        );
-        p = DragParams {
+        assert_eq!(p.check().unwrap_err().field, "drag.diameter");
+        p = Drag {
             xi_perp: -1.0,
             ..Default::default()
         };
-        assert!(
-            p.validate()
-                .unwrap_err()
-                .to_string()
-                .contains("drag.xi_perp")
-        );
+        assert_eq!(p.check().unwrap_err().field, "drag.xi_perp");
     }
 }

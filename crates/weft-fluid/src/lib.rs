@@ -23,7 +23,7 @@ pub mod raster;
 pub mod verify;
 pub mod viscosity;
 
-pub use drag::{DragParams, FluidProperties, Shape, drag_force, lift_force};
+pub use drag::{DragLaw, FluidProperties, Shape, drag_force, lift_force};
 pub use grid::{Axis, Boundaries, Boundary, Domain, FluidError, MacGrid};
 pub use obstacle::SolidFace;
 pub use pressure::{

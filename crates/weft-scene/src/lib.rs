@@ -10,6 +10,7 @@
 #![warn(missing_docs)]
 
 pub mod element;
+pub mod fields;
 pub mod geometry;
 pub mod obj;
 pub mod preview;

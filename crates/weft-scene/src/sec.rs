@@ -4,6 +4,7 @@
 //! (and exposes it in graphs by registering a node that attaches it). A Behavior that finds no
 //! SEC of its kind on an element uses the type's documented `Default`.
 
+use crate::fields::{ge, ge_le, ge_lt, gt, text, vec3};
 use std::any::Any;
 use std::collections::BTreeMap;
 use std::fmt::Debug;
@@ -89,156 +90,73 @@ macro_rules! sec_impl {
     };
 }
 
-/// Discrete Shell: membrane and bending of cloth (SI units).
-#[derive(Clone, Debug, PartialEq)]
-pub struct DiscreteShell {
-    /// Young's modulus [Pa] (default 1e6).
-    pub youngs_modulus: f64,
-    /// Poisson's ratio, in [0, 0.5) (default 0.3).
-    pub poisson_ratio: f64,
-    /// Thickness [m] (default 1e-3).
-    pub thickness: f64,
-    /// Multiplier on the plate bending stiffness D = E t³ / (12 (1 − ν²)) (default 1).
-    pub bend_scale: f64,
-    /// Mass-proportional damping [1/s] (default 0).
-    pub damping: f64,
-    /// Bend angle dropoff d ∈ [0, 1] (default 0: none): the bending stiffness at curvature κ
-    /// is the plain one times 1 − d + d (κ/κ₀)² (soft for small bends, stiffer for large:
-    /// `weft_solid::energy::Dropoff`).
-    pub bend_dropoff: f64,
-    /// κ₀ of the dropoff [1/m] (default 20: a bend of 5 cm radius has the plain stiffness).
-    pub dropoff_curvature: f64,
-    /// Channel holding rest positions (default `rest`; the initial positions when absent).
-    pub rest_channel: String,
-    /// Stiffness multiplier along the warp (default 1).
-    pub warp_scale: f64,
-    /// Stiffness multiplier along the weft (default 1).
-    pub weft_scale: f64,
-    /// Shear stiffness multiplier (default 1).
-    pub shear_scale: f64,
-    /// Warp direction in rest space, projected into each triangle (default +x).
-    pub warp_direction: [f64; 3],
+/// The bend angle dropoff's doc (Discrete Shell and Rod SECs alike).
+macro_rules! dropoff_doc {
+    () => {
+        "bend angle dropoff d: bending stiffness × (1 − d + d (κ/κ₀)²) at curvature κ (soft for small bends, stiffer for large; 0: none; `weft_solid::energy::Dropoff`)"
+    };
 }
 
-impl Default for DiscreteShell {
-    fn default() -> Self {
-        DiscreteShell {
-            youngs_modulus: 1e6,
-            poisson_ratio: 0.3,
-            thickness: 1e-3,
-            bend_scale: 1.0,
-            damping: 0.0,
-            bend_dropoff: 0.0,
-            dropoff_curvature: 20.0,
-            rest_channel: "rest".into(),
-            warp_scale: 1.0,
-            weft_scale: 1.0,
-            shear_scale: 1.0,
-            warp_direction: [1.0, 0.0, 0.0],
-        }
+crate::sec_fields! {
+    /// Discrete Shell: membrane and bending of cloth (SI units).
+    pub struct DiscreteShell: "discrete_shell",
+        "Discrete Shell SEC: membrane (StVK, optionally orthotropic) and bending of cloth" {
+        youngs_modulus: f64 = 1e6, gt(0.0), "Pa", "Young's modulus E";
+        poisson_ratio: f64 = 0.3, ge_lt(0.0, 0.5), "", "Poisson's ratio ν";
+        thickness: f64 = 1e-3, gt(0.0), "m", "shell thickness t";
+        bend_scale: f64 = 1.0, ge(0.0), "", "multiplier on D = E t³/(12(1 − ν²)); 0 disables bending";
+        damping: f64 = 0.0, ge(0.0), "1/s", "mass-proportional damping";
+        rest_channel: String = "rest", text(), "", "channel with rest positions (initial positions when absent)";
+        warp_scale: f64 = 1.0, gt(0.0), "", "stiffness multiplier along the warp";
+        weft_scale: f64 = 1.0, gt(0.0), "", "stiffness multiplier along the weft";
+        shear_scale: f64 = 1.0, gt(0.0), "", "shear stiffness multiplier";
+        warp_direction: [f64; 3] = [1.0, 0.0, 0.0], vec3(), "", "warp direction in rest space (projected into each triangle)";
+        bend_dropoff: f64 = 0.0, ge_le(0.0, 1.0), "", dropoff_doc!();
+        dropoff_curvature: f64 = 20.0, gt(0.0), "1/m", "κ₀ of the dropoff: the curvature (1/radius) at which the plain stiffness holds";
     }
 }
-sec_impl!(DiscreteShell, "discrete_shell");
 
-/// Rod: stretching and bending of hair (SI units).
-#[derive(Clone, Debug, PartialEq)]
-pub struct Rod {
-    /// Young's modulus [Pa] (default 3e9, keratin).
-    pub youngs_modulus: f64,
-    /// Fibre radius [m] (default 5e-5).
-    pub radius: f64,
-    /// Multiplier on the axial stiffness E·πr² (default 1; lower it for stretchy strands).
-    pub stretch_scale: f64,
-    /// Bending stiffness EI [N·m²]; 0 (the default) derives it as E·πr⁴/4.
-    pub bend_stiffness: f64,
-    /// Multiplier on the bending stiffness (default 1).
-    pub bend_scale: f64,
-    /// Mass-proportional damping [1/s] (default 0).
-    pub damping: f64,
-    /// Bend angle dropoff d ∈ [0, 1] (default 0: none): the bending stiffness at curvature κ
-    /// is the plain one times 1 − d + d (κ/κ₀)² (soft for small bends, stiffer for large:
-    /// `weft_solid::energy::Dropoff`).
-    pub bend_dropoff: f64,
-    /// κ₀ of the dropoff [1/m] (default 20: a bend of 5 cm radius has the plain stiffness).
-    pub dropoff_curvature: f64,
-    /// Channel holding rest positions (default `rest`; the initial positions when absent).
-    pub rest_channel: String,
-}
-
-impl Default for Rod {
-    fn default() -> Self {
-        Rod {
-            youngs_modulus: 3e9,
-            radius: 5e-5,
-            stretch_scale: 1.0,
-            bend_stiffness: 0.0,
-            bend_scale: 1.0,
-            damping: 0.0,
-            bend_dropoff: 0.0,
-            dropoff_curvature: 20.0,
-            rest_channel: "rest".into(),
-        }
+crate::sec_fields! {
+    /// Rod: stretching and bending of hair (SI units).
+    pub struct Rod: "rod", "Rod SEC: stretching and bending of hair" {
+        youngs_modulus: f64 = 3e9, gt(0.0), "Pa", "Young's modulus E (3e9: keratin)";
+        radius: f64 = 5e-5, gt(0.0), "m", "fibre radius r";
+        stretch_scale: f64 = 1.0, gt(0.0), "", "multiplier on the axial stiffness E·πr² (lower it for stretchy strands)";
+        bend_stiffness: f64 = 0.0, ge(0.0), "N·m²", "bending stiffness EI; 0 derives it as E·πr⁴/4";
+        bend_scale: f64 = 1.0, ge(0.0), "", "multiplier on the bending stiffness; 0 disables bending";
+        damping: f64 = 0.0, ge(0.0), "1/s", "mass-proportional damping";
+        rest_channel: String = "rest", text(), "", "channel with rest positions (initial positions when absent)";
+        bend_dropoff: f64 = 0.0, ge_le(0.0, 1.0), "", dropoff_doc!();
+        dropoff_curvature: f64 = 20.0, gt(0.0), "1/m", "κ₀ of the dropoff: the curvature (1/radius) at which the plain stiffness holds";
     }
 }
-sec_impl!(Rod, "rod");
 
-/// Density: mass per area of cloth and per length of hair.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Density {
-    /// Cloth mass per rest area [kg/m²] (default 0.2).
-    pub area_density: f64,
-    /// Hair mass per rest length [kg/m] (default 1e-5: a 50 µm keratin fibre).
-    pub line_density: f64,
-}
-
-impl Default for Density {
-    fn default() -> Self {
-        Density {
-            area_density: 0.2,
-            line_density: 1e-5,
-        }
+crate::sec_fields! {
+    /// Density: mass per area of cloth and per length of hair.
+    pub struct Density: "density", "Density SEC: mass per area of cloth and per length of hair" {
+        area_density: f64 = 0.2, gt(0.0), "kg/m²", "cloth mass per rest area";
+        line_density: f64 = 1e-5, gt(0.0), "kg/m", "hair mass per rest length (1e-5: a 50 µm keratin fibre)";
     }
 }
-sec_impl!(Density, "density");
 
-/// Drag: how hair or cloth exchanges momentum with a surrounding fluid (the seed's anisotropic
-/// drag, Fei et al. 2018). Coefficients C_l = 1/k_l + ξ_N·1.75/√(150 k_l)·(1 − γ)^(−3/2)·Re^c
-/// with 1/k_l = ξ_D ξ_l / 10⁴; force −(μV/D²) R C Rᵀ Δv; lift ξ_L.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Drag {
-    /// Global drag scale ξ_D (default 1).
-    pub xi_d: f64,
-    /// Normal drag scale ξ⊥ (default 1).
-    pub xi_perp: f64,
-    /// Tangential drag scale ξ∥ (default 0.5).
-    pub xi_par: f64,
-    /// Nonlinear (inertial) term scale ξ_N (default 0: linear drag).
-    pub xi_n: f64,
-    /// Lift scale ξ_L (default 0).
-    pub xi_l: f64,
-    /// Fibre diameter D [m] (default 1e-4).
-    pub diameter: f64,
-    /// Material fraction γ in [0, 1) (default 0.1).
-    pub gamma: f64,
-    /// Drag degree c, the exponent of the Reynolds number (default 1).
-    pub degree: f64,
-}
-
-impl Default for Drag {
-    fn default() -> Self {
-        Drag {
-            xi_d: 1.0,
-            xi_perp: 1.0,
-            xi_par: 0.5,
-            xi_n: 0.0,
-            xi_l: 0.0,
-            diameter: 1e-4,
-            gamma: 0.1,
-            degree: 1.0,
-        }
+crate::sec_fields! {
+    /// Drag: how hair or cloth exchanges momentum with a surrounding fluid (the seed's
+    /// anisotropic drag, Fei et al. 2018). Coefficients C_l = 1/k_l + ξ_N·1.75/√(150 k_l)·(1 −
+    /// γ)^(−3/2)·Re^c with 1/k_l = ξ_D ξ_l / 10⁴; force −(μV/D²) R C Rᵀ Δv; lift ξ_L. The
+    /// law itself is `weft_fluid::DragLaw`.
+    #[derive(Copy)]
+    pub struct Drag: "drag",
+        "Drag SEC: how hair or cloth exchanges momentum with a fluid (the seed's anisotropic drag: C_l = 1/k_l + xi_N 1.75/sqrt(150 k_l) (1 - gamma)^-1.5 Re^c, 1/k_l = xi_D xi_l / 1e4; force -(mu V/D^2) R C R^T dv; lift xi_L)" {
+        xi_d: f64 = 1.0, ge(0.0), "", "global drag scale ξ_D";
+        xi_perp: f64 = 1.0, ge(0.0), "", "normal drag scale ξ⊥";
+        xi_par: f64 = 0.5, ge(0.0), "", "tangential drag scale ξ∥";
+        xi_n: f64 = 0.0, ge(0.0), "", "nonlinear (inertial) term scale ξ_N; 0: linear drag";
+        xi_l: f64 = 0.0, ge(0.0), "", "lift scale ξ_L; 0: no lift";
+        diameter: f64 = 1e-4, gt(0.0), "m", "fibre diameter D";
+        gamma: f64 = 0.1, ge_lt(0.0, 1.0), "", "material fraction γ";
+        degree: f64 = 1.0, ge(0.0), "", "drag degree c: the exponent of the Reynolds number";
     }
 }
-sec_impl!(Drag, "drag");
 
 /// What one side of a fluid domain does.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -469,35 +387,19 @@ impl Attachment {
     }
 }
 
-/// Collider: how an element meets others in contact (cloth, hair and collider elements).
-///
-/// A contact between a simulated element and a collider combines both sides' SECs: the
-/// distance kept is the sum of their thicknesses, the friction coefficient the geometric mean
-/// √(μ₁μ₂) (a frictionless side makes a frictionless contact), the cohesion the larger of the
-/// two. A collider without the SEC takes the simulated element's friction and cohesion and
-/// adds no thickness; a simulated element without it uses the defaults below.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Collider {
-    /// Coulomb friction coefficient μ ≥ 0 (default 0.3, cotton on skin).
-    pub friction: f64,
-    /// Distance kept from the surface [m], > 0 (default 1e-3).
-    pub thickness: f64,
-    /// Cohesion [Pa]: the most a contact may pull, per m² of the vertex's contact area
-    /// (cloth: a third of its triangles' area; hair: its segments' length × diameter), ≥ 0
-    /// (default 0: nothing sticks).
-    pub cohesion: f64,
-}
-
-impl Default for Collider {
-    fn default() -> Self {
-        Collider {
-            friction: 0.3,
-            thickness: 1e-3,
-            cohesion: 0.0,
-        }
+crate::sec_fields! {
+    /// Collider: how a cloth, hair or collider element meets others in contact (with
+    /// `behavior.collision` and a collision group). A contact keeps the sum of both sides'
+    /// thicknesses, uses the geometric mean of their friction coefficients and the larger
+    /// cohesion; a collider without it takes the simulated element's friction and cohesion
+    /// and adds no thickness; a simulated element without it uses the defaults.
+    pub struct Collider: "collider",
+        "Collider SEC: how a cloth, hair or collider element meets others in contact (with behavior.collision and a collision group); a contact keeps the sum of both sides' thicknesses, uses the geometric mean of their friction coefficients and the larger cohesion; a collider without it takes the other side's friction and cohesion" {
+        friction: f64 = 0.3, ge(0.0), "", "Coulomb friction coefficient μ (0.3: cotton on skin)";
+        thickness: f64 = 1e-3, gt(0.0), "m", "distance kept from the surface";
+        cohesion: f64 = 0.0, ge(0.0), "Pa", "the most a contact may pull per m² of contact area (cloth: a third of a vertex's triangles; hair: its segments' length × diameter)";
     }
 }
-sec_impl!(Collider, "collider");
 
 /// Which elements a collision group names.
 #[derive(Clone, Debug, PartialEq)]

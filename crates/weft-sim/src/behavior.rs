@@ -7,12 +7,13 @@ use nalgebra::Vector3;
 use std::collections::BTreeSet;
 use std::fmt::Debug;
 use std::sync::Arc;
+use weft_scene::fields::SecFields;
 use weft_scene::{
     Attachment, AttachmentMode, Density, DiscreteShell, ElementKind, Geometry, Rod, SceneElement,
 };
 use weft_solid::energy::{
-    ClampedEdge, Membrane, MembraneMaterial, RodBend, RodClamp, RodStretch, Spring,
-    shell_bending_clamped,
+    ClampedEdge, Membrane, MembraneMaterial, RodBend, RodClamp, RodSection, RodStretch, Spring,
+    plate_bending_stiffness, shell_bending_clamped,
 };
 
 /// Simulation logic for the elements a Behavior applies to.
@@ -41,14 +42,6 @@ pub(crate) fn bad(element: &str, field: &str, message: String) -> SimError {
     }
 }
 
-pub(crate) fn positive(element: &str, field: &str, x: f64) -> Result<(), SimError> {
-    if x > 0.0 && x.is_finite() {
-        Ok(())
-    } else {
-        Err(bad(element, field, format!("must be > 0, got {x}")))
-    }
-}
-
 pub(crate) fn non_negative(element: &str, field: &str, x: f64) -> Result<(), SimError> {
     if x >= 0.0 && x.is_finite() {
         Ok(())
@@ -57,16 +50,11 @@ pub(crate) fn non_negative(element: &str, field: &str, x: f64) -> Result<(), Sim
     }
 }
 
-/// Checks a bend angle dropoff: d in [0, 1], κ₀ > 0.
-fn dropoff_ok(element: &str, sec: &str, d: f64, kappa0: f64) -> Result<(), SimError> {
-    if !(0.0..=1.0).contains(&d) {
-        return Err(bad(
-            element,
-            &format!("{sec}.bend_dropoff"),
-            format!("must be in [0, 1], got {d}"),
-        ));
-    }
-    positive(element, &format!("{sec}.dropoff_curvature"), kappa0)
+/// Checks an SEC against its table's ranges (`weft_scene::fields`): the node that attached
+/// it checked the same ranges, but a host or plugin may build the struct itself.
+pub(crate) fn checked<S: SecFields>(element: &str, sec: &S) -> Result<(), SimError> {
+    sec.check()
+        .map_err(|err| bad(element, &err.field, err.message))
 }
 
 fn v3(p: [f64; 3]) -> Vector3<f64> {
@@ -115,31 +103,8 @@ impl Behavior for DiscreteShellMaterial {
             let shell = e.secs.get::<DiscreteShell>().cloned().unwrap_or_default();
             let density = e.secs.get::<Density>().cloned().unwrap_or_default();
             let name = e.name.as_str();
-            positive(name, "discrete_shell.youngs_modulus", shell.youngs_modulus)?;
-            positive(name, "discrete_shell.thickness", shell.thickness)?;
-            positive(name, "density.area_density", density.area_density)?;
-            for (f, x) in [
-                ("warp_scale", shell.warp_scale),
-                ("weft_scale", shell.weft_scale),
-                ("shear_scale", shell.shear_scale),
-            ] {
-                positive(name, &format!("discrete_shell.{f}"), x)?;
-            }
-            if !(0.0..0.5).contains(&shell.poisson_ratio) {
-                return Err(bad(
-                    name,
-                    "discrete_shell.poisson_ratio",
-                    format!("must be in [0, 0.5), got {}", shell.poisson_ratio),
-                ));
-            }
-            non_negative(name, "discrete_shell.bend_scale", shell.bend_scale)?;
-            non_negative(name, "discrete_shell.damping", shell.damping)?;
-            dropoff_ok(
-                name,
-                "discrete_shell",
-                shell.bend_dropoff,
-                shell.dropoff_curvature,
-            )?;
+            checked(name, &shell)?;
+            checked(name, &density)?;
             let rest = rest_positions(e, &shell.rest_channel)?;
             let off = b.offset(ei).expect("cloth elements have a vertex range");
             // A face listed twice (double-sided exports) would double mass and stiffness and
@@ -195,8 +160,12 @@ impl Behavior for DiscreteShellMaterial {
                 b.add_damping((v + off) as usize, shell.damping);
             }
             if shell.bend_scale > 0.0 {
-                let d = shell.bend_scale * shell.youngs_modulus * shell.thickness.powi(3)
-                    / (12.0 * (1.0 - shell.poisson_ratio.powi(2)));
+                let d = plate_bending_stiffness(
+                    shell.youngs_modulus,
+                    shell.poisson_ratio,
+                    shell.thickness,
+                    shell.bend_scale,
+                );
                 let mut rest: Vec<Vector3<f64>> = rest.iter().map(|&p| v3(p)).collect();
                 // Clamped edges: their ghosts' rest positions follow the element's rest
                 // positions after its own (crate::clamp).
@@ -279,15 +248,12 @@ impl Behavior for RodMaterial {
             let rod = e.secs.get::<Rod>().cloned().unwrap_or_default();
             let density = e.secs.get::<Density>().cloned().unwrap_or_default();
             let name = e.name.as_str();
-            let ei_bend = rod_bending_stiffness(name, &rod)?;
-            positive(name, "rod.stretch_scale", rod.stretch_scale)?;
-            positive(name, "density.line_density", density.line_density)?;
-            non_negative(name, "rod.damping", rod.damping)?;
-            dropoff_ok(name, "rod", rod.bend_dropoff, rod.dropoff_curvature)?;
+            checked(name, &rod)?;
+            checked(name, &density)?;
+            let section = rod_section(&rod);
+            let (ea, ei_bend) = (section.axial, section.bending);
             let rest = rest_positions(e, &rod.rest_channel)?;
             let off = b.offset(ei).expect("hair elements have a vertex range");
-            let area = std::f64::consts::PI * rod.radius * rod.radius;
-            let ea = rod.stretch_scale * rod.youngs_modulus * area;
             for k in 0..curves.len() {
                 let r = curves.range(k);
                 let pts: Vec<Vector3<f64>> = rest[r.clone()].iter().map(|&p| v3(p)).collect();
@@ -333,24 +299,15 @@ impl Behavior for RodMaterial {
     }
 }
 
-/// The bending stiffness a rod's bending terms use, bend_scale·EI [N m²]: EI is the Rod
-/// SEC's `bend_stiffness` when set, else E·πr⁴/4. Checks the fields it reads.
-fn rod_bending_stiffness(name: &str, rod: &Rod) -> Result<f64, SimError> {
-    positive(name, "rod.youngs_modulus", rod.youngs_modulus)?;
-    positive(name, "rod.radius", rod.radius)?;
-    for (field, v) in [
-        ("rod.bend_scale", rod.bend_scale),
-        ("rod.bend_stiffness", rod.bend_stiffness),
-    ] {
-        non_negative(name, field, v)?;
-    }
-    let area = std::f64::consts::PI * rod.radius * rod.radius;
-    let ei = if rod.bend_stiffness > 0.0 {
-        rod.bend_stiffness
-    } else {
-        rod.youngs_modulus * area * rod.radius * rod.radius / 4.0
-    };
-    Ok(rod.bend_scale * ei)
+/// A rod's axial and bending stiffnesses from its SEC (`weft_solid::energy::RodSection`).
+fn rod_section(rod: &Rod) -> RodSection {
+    RodSection::round(
+        rod.youngs_modulus,
+        rod.radius,
+        rod.stretch_scale,
+        rod.bend_stiffness,
+        rod.bend_scale,
+    )
 }
 
 /// Uniform gravity on every simulated vertex.
@@ -810,7 +767,8 @@ fn clamps(
         return Ok(());
     };
     let rod = e.secs.get::<Rod>().cloned().unwrap_or_default();
-    let ei = rod_bending_stiffness(&e.name, &rod).map_err(|err| err.to_string())?;
+    checked(&e.name, &rod).map_err(|err| err.to_string())?;
+    let ei = rod_section(&rod).bending;
     if ei == 0.0 {
         // A strand without bending stiffness has nothing to clamp: it hangs from its pins.
         return Ok(());
@@ -875,7 +833,7 @@ impl Behavior for FluidDrag {
     fn apply(&self, scene: &[SceneElement], b: &mut SystemBuilder) -> Result<(), SimError> {
         for (ei, e) in scene.iter().enumerate() {
             let Some(off) = b.offset(ei) else { continue };
-            let sec = match e.kind {
+            let params = match e.kind {
                 ElementKind::Cloth | ElementKind::Hair => {
                     b.read(ei, "drag");
                     e.secs
@@ -885,20 +843,7 @@ impl Behavior for FluidDrag {
                 }
                 _ => continue,
             };
-            let params = weft_fluid::DragParams {
-                xi_d: sec.xi_d,
-                xi_perp: sec.xi_perp,
-                xi_par: sec.xi_par,
-                xi_n: sec.xi_n,
-                xi_l: sec.xi_l,
-                diameter: sec.diameter,
-                gamma: sec.gamma,
-                degree: sec.degree,
-            };
-            params.validate().map_err(|err| match err {
-                weft_fluid::FluidError::Parameter { name, message } => bad(&e.name, name, message),
-                other => bad(&e.name, "drag", other.to_string()),
-            })?;
+            checked(&e.name, &params)?;
             match (&*e.geometry, e.kind) {
                 (Geometry::Curves(c), ElementKind::Hair) => {
                     b.read(ei, "rod");

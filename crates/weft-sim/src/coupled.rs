@@ -36,7 +36,7 @@ use weft_fluid::raster::{
     triangle_lattice, triangle_samples,
 };
 use weft_fluid::{
-    Diffusion, DragParams, FluidProperties, MacGrid, PressureSolve, PressureStats, Projection,
+    Diffusion, DragLaw, FluidProperties, MacGrid, PressureSolve, PressureStats, Projection,
     SolidFace, lift_force,
 };
 use weft_solid::{Integrator, Settings, SolidSystem, State, StepError, StepStats, VertexDrag};
@@ -56,7 +56,7 @@ pub struct DragElement {
     /// Its shape.
     pub shape: DragShape,
     /// Its drag law.
-    pub params: DragParams,
+    pub params: weft_scene::Drag,
 }
 
 /// How solids and fluid are coupled within a step.

@@ -3,7 +3,8 @@
 //! themselves are graph files run by `solver.coupled` (`crates/weft-bench/scenes/`), as are
 //! the clamped strand and strip (`strand.json`, `strip.json`).
 
-use weft_fluid::{DragParams, FluidProperties};
+use weft_fluid::FluidProperties;
+use weft_scene::Drag;
 pub use weft_solid::verify::G;
 
 /// Drag per unit solid volume k [N s/m⁴] of the linear branch with ξ⊥ = 1 for a strand of
@@ -17,7 +18,7 @@ pub fn strand_drag(radius: f64, xi_d: f64) -> f64 {
 /// D = 0.1 mm: k = μ/D² per unit solid volume).
 pub const SHEET_DENSITY: f64 = 1500.0;
 /// The settling sheet's drag law.
-pub const SHEET_DRAG: DragParams = DragParams {
+pub const SHEET_DRAG: Drag = Drag {
     xi_d: 1e4,
     xi_perp: 1.0,
     xi_par: 1.0,

@@ -28,7 +28,7 @@ mod step;
 
 pub use step::{ContactFrameStats, Contacts};
 
-use crate::behavior::{bad, non_negative, positive};
+use crate::behavior::{bad, checked, non_negative};
 use crate::builder::SystemBuilder;
 use crate::error::SimError;
 use bvh::TriangleTree;
@@ -131,12 +131,6 @@ pub struct CollisionSetup {
     pub areas: Vec<f64>,
     /// Per scene element, its hair segments as global vertex pairs (empty for the rest).
     pub segments: Vec<Vec<[u32; 2]>>,
-}
-
-fn check_collider_sec(name: &str, c: &Collider) -> Result<(), SimError> {
-    non_negative(name, "collider.friction", c.friction)?;
-    positive(name, "collider.thickness", c.thickness)?;
-    non_negative(name, "collider.cohesion", c.cohesion)
 }
 
 /// Closed: every undirected edge in exactly two triangles, once in each direction.
@@ -264,7 +258,7 @@ impl crate::Behavior for Collision {
                     }
                     let sec = |m: usize| -> Result<Collider, SimError> {
                         let c = scene[m].secs.get::<Collider>().cloned().unwrap_or_default();
-                        check_collider_sec(&scene[m].name, &c)?;
+                        checked(&scene[m].name, &c)?;
                         Ok(c)
                     };
                     b.read(ma, "collider");
@@ -287,7 +281,7 @@ impl crate::Behavior for Collision {
             for &m in &members {
                 b.read(m, "collider");
                 let ms = scene[m].secs.get::<Collider>().cloned().unwrap_or_default();
-                check_collider_sec(&scene[m].name, &ms)?;
+                checked(&scene[m].name, &ms)?;
                 for &c in &colliders {
                     b.read(c, "collider");
                     let k = match collider_index.get(&c) {
@@ -295,7 +289,7 @@ impl crate::Behavior for Collision {
                         None => {
                             let k = setup.colliders.len();
                             if let Some(cs) = scene[c].secs.get::<Collider>() {
-                                check_collider_sec(&scene[c].name, cs)?;
+                                checked(&scene[c].name, cs)?;
                             }
                             setup.colliders.push(collider_setup(&scene[c], c, b)?);
                             collider_index.insert(c, k);

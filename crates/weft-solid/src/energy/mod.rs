@@ -15,10 +15,10 @@ pub use dropoff::Dropoff;
 pub use hinge::{Hinge, dihedral_angle, dihedral_angle_gradient, dihedral_gradient};
 pub use membrane::{Membrane, MembraneMaterial};
 pub use midedge::{MidedgeBend, SharedHinges};
-pub use rod::{RodBend, RodClamp, RodStretch};
+pub use rod::{RodBend, RodClamp, RodSection, RodStretch};
 pub use shell::{
-    ClampedEdge, MAX_STENCIL, ShellBend, ShellBending, ShellError, shell_bending,
-    shell_bending_clamped,
+    ClampedEdge, MAX_STENCIL, ShellBend, ShellBending, ShellError, plate_bending_stiffness,
+    shell_bending, shell_bending_clamped,
 };
 pub use shell_clamp::ShellClamp;
 pub use spring::Spring;

@@ -4,6 +4,39 @@ use super::{Element, Local, gather};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use num_dual::{Dual64, DualNum, HyperDual64};
 
+/// A round fibre's stiffnesses from its material: what [`RodStretch`] and [`RodBend`] take.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RodSection {
+    /// Axial stiffness stretch_scale · E·πr² [N].
+    pub axial: f64,
+    /// Bending stiffness bend_scale · EI [N m²], EI = E·πr⁴/4 (a solid circle's second
+    /// moment of area) unless given.
+    pub bending: f64,
+}
+
+impl RodSection {
+    /// From Young's modulus, the radius, the Rod SEC's multipliers and its `bend_stiffness`
+    /// (an EI that replaces E·πr⁴/4 when positive).
+    pub fn round(
+        youngs: f64,
+        radius: f64,
+        stretch_scale: f64,
+        bend_stiffness: f64,
+        bend_scale: f64,
+    ) -> Self {
+        let area = std::f64::consts::PI * radius * radius;
+        let ei = if bend_stiffness > 0.0 {
+            bend_stiffness
+        } else {
+            youngs * area * radius * radius / 4.0
+        };
+        RodSection {
+            axial: stretch_scale * youngs * area,
+            bending: bend_scale * ei,
+        }
+    }
+}
+
 /// Stretch of one segment: E = ½ k L̄ (‖e‖/L̄ − 1)², k = E·A [N], L̄ the rest length.
 #[derive(Clone, Debug)]
 pub struct RodStretch {

@@ -103,6 +103,14 @@ pub(super) fn dot<S: DualNum<Primitive = f64> + Copy>(a: [S; 3], b: [S; 3]) -> S
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
+/// A plate's bending stiffness D = scale · E t³/(12(1 − ν²)) [J] (Kirchhoff–Love: the
+/// moment per unit width per unit curvature of a plate of Young's modulus `youngs`, Poisson's
+/// ratio `poisson` and thickness `thickness`); `scale` is the Discrete Shell SEC's
+/// `bend_scale`.
+pub fn plate_bending_stiffness(youngs: f64, poisson: f64, thickness: f64, scale: f64) -> f64 {
+    scale * youngs * thickness.powi(3) / (12.0 * (1.0 - poisson.powi(2)))
+}
+
 /// Shell bending of a mesh: both halves of the plate energy.
 #[derive(Clone, Debug, Default)]
 pub struct ShellBending {
