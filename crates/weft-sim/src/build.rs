@@ -461,3 +461,28 @@ pub fn compile_within(
         tree: tree.clone(),
     })
 }
+
+impl Compiled {
+    /// Each frozen vertex's input position in `scene` (checked by [`Compiled::check_scene`]
+    /// first: the elements have the vertex counts they were compiled with).
+    pub fn freeze_inputs(&self, scene: &[SceneElement]) -> Vec<Vector3<f64>> {
+        crate::freeze::inputs(&self.freezes, scene)
+    }
+
+    /// The frozen vertices' frame to `scene` (the scene at `frame`) from their inputs at the
+    /// previous frame, `start` (`freeze::frame`).
+    pub fn freeze_frame(
+        &self,
+        scene: &[SceneElement],
+        start: &[Vector3<f64>],
+        frame: i64,
+        frame_dt: f64,
+    ) -> Result<crate::freeze::FreezeFrame, SimError> {
+        crate::freeze::frame(&self.freezes, scene, start, frame, frame_dt)
+    }
+
+    /// Sets the frozen vertices' targets at fraction `s` of `frame` (`freeze::set`).
+    pub fn set_freeze(&self, frame: &crate::freeze::FreezeFrame, s: f64, system: &mut SolidSystem) {
+        crate::freeze::set(&self.freezes, self.base_sliders, frame, s, system)
+    }
+}

@@ -18,7 +18,6 @@
 //! start (kept in [`crate::SimState::inputs`]) to the frame's, at each substep's end time, so
 //! a held vertex moves with the input's velocity and, released, keeps it.
 
-use crate::build::Compiled;
 use crate::error::SimError;
 use nalgebra::Vector3;
 use weft_scene::{Attachment, AttachmentMode, SceneElement};
@@ -54,112 +53,116 @@ pub struct FreezeFrame {
     pub frame_dt: f64,
 }
 
-impl Compiled {
-    /// Each frozen vertex's input position in `scene` (checked by [`Compiled::check_scene`]
-    /// first: the elements have the vertex counts they were compiled with).
-    pub fn freeze_inputs(&self, scene: &[SceneElement]) -> Vec<Vector3<f64>> {
-        self.freezes
-            .iter()
-            .map(|f| {
-                let p = scene
-                    .get(f.element)
-                    .and_then(|e| e.geometry.positions().get(f.index).copied())
-                    .unwrap_or([f64::NAN; 3]);
-                Vector3::from(p)
-            })
-            .collect()
-    }
+/// Each frozen vertex's input position in `scene` (checked by `Compiled::check_scene` first:
+/// the elements have the vertex counts they were compiled with).
+pub fn inputs(freezes: &[FreezePin], scene: &[SceneElement]) -> Vec<Vector3<f64>> {
+    freezes
+        .iter()
+        .map(|f| {
+            let p = scene
+                .get(f.element)
+                .and_then(|e| e.geometry.positions().get(f.index).copied())
+                .unwrap_or([f64::NAN; 3]);
+            Vector3::from(p)
+        })
+        .collect()
+}
 
-    /// The frozen vertices' frame to `scene` (the scene at `frame`) from their inputs at the
-    /// previous frame, `start`; refuses a weight that is not a number ≥ 0 and an input that
-    /// is not finite, naming the attachment and the frame.
-    pub fn freeze_frame(
-        &self,
-        scene: &[SceneElement],
-        start: &[Vector3<f64>],
-        frame: i64,
-        frame_dt: f64,
-    ) -> Result<FreezeFrame, SimError> {
-        if self.freezes.is_empty() {
-            return Ok(FreezeFrame {
-                frame_dt,
-                ..Default::default()
-            });
-        }
-        if start.len() != self.freezes.len() {
-            return Err(SimError::SceneChanged(format!(
-                "frame {frame}: the state holds {} frozen inputs but the scene has {} frozen vertices",
-                start.len(),
-                self.freezes.len()
+/// The frozen vertices' frame to `scene` (the scene at `frame`) from their inputs at the
+/// previous frame, `start`; refuses a weight that is not a number ≥ 0 and an input that
+/// is not finite, naming the attachment and the frame.
+pub fn frame(
+    freezes: &[FreezePin],
+    scene: &[SceneElement],
+    start: &[Vector3<f64>],
+    frame: i64,
+    frame_dt: f64,
+) -> Result<FreezeFrame, SimError> {
+    if freezes.is_empty() {
+        return Ok(FreezeFrame {
+            frame_dt,
+            ..Default::default()
+        });
+    }
+    if start.len() != freezes.len() {
+        return Err(SimError::SceneChanged(format!(
+            "frame {frame}: the state holds {} frozen inputs but the scene has {} frozen vertices",
+            start.len(),
+            freezes.len()
+        )));
+    }
+    let end = inputs(freezes, scene);
+    let mut weight = Vec::with_capacity(end.len());
+    let mut last: Option<(usize, f64)> = None;
+    for (f, p) in freezes.iter().zip(&end) {
+        let a = &scene[f.attachment];
+        let fail = |message: String| SimError::BadAttachment {
+            attachment: a.name.clone(),
+            message: format!("frame {frame}: {message}"),
+        };
+        let w = match last {
+            Some((ai, w)) if ai == f.attachment => w,
+            _ => {
+                let w = match a.secs.get::<Attachment>().map(|s| s.mode) {
+                    Some(AttachmentMode::Freeze { weight }) => weight,
+                    _ => {
+                        return Err(fail(
+                            "it is no longer a freeze attachment (its mode changed during the run)"
+                                .into(),
+                        ));
+                    }
+                };
+                if !(w >= 0.0 && w.is_finite()) {
+                    return Err(fail(format!("the freeze weight must be ≥ 0, got {w}")));
+                }
+                last = Some((f.attachment, w));
+                w
+            }
+        };
+        if !p.iter().all(|c| c.is_finite()) {
+            return Err(fail(format!(
+                "the input of vertex {} of '{}' is not finite: {p:?}",
+                f.index, scene[f.element].name
             )));
         }
-        let end = self.freeze_inputs(scene);
-        let mut weight = Vec::with_capacity(end.len());
-        let mut last: Option<(usize, f64)> = None;
-        for (f, p) in self.freezes.iter().zip(&end) {
-            let a = &scene[f.attachment];
-            let fail = |message: String| SimError::BadAttachment {
-                attachment: a.name.clone(),
-                message: format!("frame {frame}: {message}"),
-            };
-            let w = match last {
-                Some((ai, w)) if ai == f.attachment => w,
-                _ => {
-                    let w = match a.secs.get::<Attachment>().map(|s| s.mode) {
-                        Some(AttachmentMode::Freeze { weight }) => weight,
-                        _ => {
-                            return Err(fail(
-                                "it is no longer a freeze attachment (its mode changed during the run)"
-                                    .into(),
-                            ));
-                        }
-                    };
-                    if !(w >= 0.0 && w.is_finite()) {
-                        return Err(fail(format!("the freeze weight must be ≥ 0, got {w}")));
-                    }
-                    last = Some((f.attachment, w));
-                    w
-                }
-            };
-            if !p.iter().all(|c| c.is_finite()) {
-                return Err(fail(format!(
-                    "the input of vertex {} of '{}' is not finite: {p:?}",
-                    f.index, scene[f.element].name
-                )));
-            }
-            weight.push(w * f.factor);
-        }
-        Ok(FreezeFrame {
-            start: start.to_vec(),
-            end,
-            weight,
-            frame_dt,
-        })
+        weight.push(w * f.factor);
     }
+    Ok(FreezeFrame {
+        start: start.to_vec(),
+        end,
+        weight,
+        frame_dt,
+    })
+}
 
-    /// Sets the frozen vertices' targets at fraction `s` of `frame`: held vertices (w ≥ 1)
-    /// become point sliders after the compiled ones, springs get their stiffness and target.
-    pub fn set_freeze(&self, frame: &FreezeFrame, s: f64, system: &mut SolidSystem) {
-        system.sliders.truncate(self.base_sliders);
-        let dt2 = frame.frame_dt * frame.frame_dt;
-        for (k, f) in self.freezes.iter().enumerate() {
-            let (a, b, w) = (frame.start[k], frame.end[k], frame.weight[k]);
-            // Exact at both ends of the frame: at s = 1 the input's own bits.
-            let target = (1.0 - s) * a + s * b;
-            let spring = &mut system.elements.springs[f.spring];
-            spring.target = target;
-            spring.k = if w > 0.0 && w < 1.0 {
-                w / (1.0 - w) * system.mass[f.vertex] / dt2
-            } else {
-                0.0
-            };
-            if w >= 1.0 {
-                system.sliders.push(Slider {
-                    vertex: f.vertex as u32,
-                    on: SlideOn::Point(target),
-                    friction: 0.0,
-                });
-            }
+/// Sets the frozen vertices' targets at fraction `s` of `frame`: held vertices (w ≥ 1)
+/// become point sliders after the compiled ones, springs get their stiffness and target.
+pub fn set(
+    freezes: &[FreezePin],
+    base_sliders: usize,
+    frame: &FreezeFrame,
+    s: f64,
+    system: &mut SolidSystem,
+) {
+    system.sliders.truncate(base_sliders);
+    let dt2 = frame.frame_dt * frame.frame_dt;
+    for (k, f) in freezes.iter().enumerate() {
+        let (a, b, w) = (frame.start[k], frame.end[k], frame.weight[k]);
+        // Exact at both ends of the frame: at s = 1 the input's own bits.
+        let target = (1.0 - s) * a + s * b;
+        let spring = &mut system.elements.springs[f.spring];
+        spring.target = target;
+        spring.k = if w > 0.0 && w < 1.0 {
+            w / (1.0 - w) * system.mass[f.vertex] / dt2
+        } else {
+            0.0
+        };
+        if w >= 1.0 {
+            system.sliders.push(Slider {
+                vertex: f.vertex as u32,
+                on: SlideOn::Point(target),
+                friction: 0.0,
+            });
         }
     }
 }

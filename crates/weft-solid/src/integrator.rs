@@ -20,11 +20,13 @@
 //! assembly and the Newton loop; splitting it would spread those invariants over files. Its
 //! settings, statistics and errors are in `settings.rs`.
 
+mod analysis;
 mod contacts;
 mod correction;
 mod curvature;
 mod elimination;
 mod factor;
+mod linear;
 mod one_ring;
 mod order;
 mod partition;
@@ -41,7 +43,8 @@ use crate::progress::Progress;
 pub use crate::settings::{Method, Settings, StepError, StepStats, StopCheck};
 use crate::system::{SolidSystem, State, SystemError};
 pub use contacts::{CONTACT_VERTICES, Contact, ContactSet, ContactStats};
-use factor::{Analysis, Factor};
+use factor::Factor;
+use linear::{LinearSystem, Shared, block_entry, value_index};
 use nalgebra::{Matrix2, Matrix3, Vector3};
 use pool::in_pool;
 use rayon::prelude::*;
@@ -68,21 +71,6 @@ fn new_local() -> Box<Local> {
     // SAFETY: `Local` is plain numbers (usize, f64 and arrays of f64), for which all-zero
     // bits are a valid value (0 and 0.0).
     unsafe { Box::<Local>::new_zeroed().assume_init() }
-}
-
-/// A pointer shared by assembly threads. Sound because the assembly tree (`partition.rs`)
-/// runs concurrently only its splits' two halves, which touch disjoint free vertices, hence
-/// disjoint gradient entries and matrix blocks; a split's interface runs after both.
-#[derive(Clone, Copy)]
-struct Shared(*mut f64);
-unsafe impl Send for Shared {}
-unsafe impl Sync for Shared {}
-
-impl Shared {
-    /// The pointer to entry `i` (a method, so closures capture the whole `Shared`).
-    fn at(self, i: usize) -> *mut f64 {
-        self.0.wrapping_add(i)
-    }
 }
 
 const NONE: u32 = u32::MAX;
@@ -163,22 +151,6 @@ fn shift_ladder(last: f64) -> impl Iterator<Item = f64> {
 /// α = 0.5 gained half as much; 0.99 no more than 0.9 (cloth_drape 12.40, cloth_pile 10.88).
 const CONTACT_CURVATURE: f64 = 0.9;
 
-/// Where entry `k` of column `c` of the pattern (`col_ptr`/`row_idx`: 3×3 blocks, each
-/// vertex's three columns with the same rows) sits in `values`. The values are stored by
-/// whole blocks: block (slot s, column vertex v) at `col_ptr[3v] + 9s`, column-major within
-/// (see [`block_entry`]). An element's block is then one or two cache lines, not three
-/// columns apart: the scatter's time is its loads of `values`.
-pub(super) fn value_index(col_ptr: &[usize], k: usize, c: usize) -> usize {
-    let off = k - col_ptr[c];
-    col_ptr[c - c % 3] + 9 * (off / 3) + 3 * (c % 3) + off % 3
-}
-
-/// The index in `values` of entry (`rr`, `cc`) of block (slot `s`, column vertex `v`).
-#[inline]
-pub(super) fn block_entry(col_ptr: &[usize], v: usize, s: usize, rr: usize, cc: usize) -> usize {
-    col_ptr[3 * v] + 9 * s + 3 * cc + rr
-}
-
 /// Where the first `vertices` free nodes sit (`free_of`: each vertex's node), from the
 /// system's layout; empty without one. For dissection and the split.
 fn free_layout(sys: &SolidSystem, free_of: &[u32], vertices: usize) -> Vec<Vector3<f64>> {
@@ -201,38 +173,9 @@ enum Mode {
     Static,
 }
 
-/// The preconditioner an integrator's Newton directions go through while its `pcg` is set:
-/// the one-ring's, or the single-precision one (`pcg_single`). A macro rather than a method,
-/// so that the caller can borrow H's other fields beside it.
-macro_rules! preconditioner {
-    ($s:expr) => {
-        match ($s.pcg, $s.pcg_single) {
-            (false, _) => None,
-            (true, false) => $s.one_ring.as_mut(),
-            (true, true) => $s.single.as_mut(),
-        }
-    };
-}
-
-/// A stepper for one system: owns the sparsity pattern, the symbolic factorization and every
-/// work buffer, so stepping allocates nothing per iteration.
-pub struct Integrator {
-    n: usize,
-    free_of: Vec<u32>,
-    n_free: usize,
-    col_ptr: Vec<usize>,
-    row_idx: Vec<usize>,
-    values: Vec<f64>,
-    /// Per element, per (a, b) stencil pair: the block's slot in column block v[b], for
-    /// blocks on or below the diagonal only (`NONE` above it: see `upper_src`).
-    slots: Vec<u32>,
-    diag_slot: Vec<u32>,
-    /// Per block above the diagonal (column by column, its slots below `diag_slot`): the
-    /// slot of its transpose in the column of its row. Elements scatter the lower triangle
-    /// only (half the scatter's loads and stores) and [`Self::mirror_upper`] copies it up.
-    upper_src: Vec<u32>,
-    /// Per free node: where its column's entries start in `upper_src`.
-    upper_start: Vec<usize>,
+/// The direction solver's room: H's factorization and the preconditioners CG may use in
+/// its place, and which one this step and this iteration use.
+struct Directions {
     /// The system matrix's factorization.
     factor: Factor,
     /// Where the pattern holds the two-ring of wide elements (shell bending) and a factor of
@@ -254,6 +197,22 @@ pub struct Integrator {
     /// Whether the current Newton iteration's directions go through a preconditioner
     /// (`one_ring`, or `single` where `pcg_single` is set).
     pcg: bool,
+}
+
+impl Directions {
+    /// The preconditioner the Newton directions go through while `pcg` is set: the
+    /// one-ring's, or the single-precision one (`pcg_single`).
+    fn preconditioner(&mut self) -> Option<&mut one_ring::OneRing> {
+        match (self.pcg, self.pcg_single) {
+            (false, _) => None,
+            (true, false) => self.one_ring.as_mut(),
+            (true, true) => self.single.as_mut(),
+        }
+    }
+}
+
+/// Work buffers of the Newton loop and its searches, sized at build: a step allocates none.
+struct Work {
     grad: Vec<f64>,
     dir: Vec<f64>,
     x_hat: Vec<Vector3<f64>>,
@@ -264,15 +223,37 @@ pub struct Integrator {
     curv_v: Vec<f64>,
     curv_w: Vec<f64>,
     curv_d: Vec<f64>,
-    /// The rods' second-order correction (their segments and its scratch).
-    correction: correction::LengthCorrection,
-    /// The lagging vertices' local solves (`elimination.rs`): adjacency built on first use.
-    elimination: elimination::Elimination,
     local: Local,
-    /// Per element: where its blocks start in `slots`.
-    slot_offset: Vec<usize>,
-    /// The assembly tree: which elements may be assembled concurrently.
-    parts: partition::Part,
+    /// Per element scratch (energies, gradient magnitudes), summed in element order so every
+    /// total is bit-identical at any thread count.
+    per_element: RefCell<Vec<f64>>,
+}
+
+/// Sliders' state at the last assembly (`sliding.rs`).
+struct Sliders {
+    /// Per free vertex: its slider's index in the system, or NONE (`sliding.rs`).
+    slide_of: Vec<u32>,
+    /// Per slider: its projector at the last assembly, and its diagonal's mean before it.
+    slide_proj: Vec<nalgebra::Matrix3<f64>>,
+    slide_scale: Vec<f64>,
+    /// Per slider: the normal force its friction reads at the last assembly [N].
+    slide_normal: Vec<f64>,
+    /// Per slider: the force its target supplies, as the Newton model predicts it
+    /// (`sliding.rs`, `SlideForces`).
+    slide_forces: sliding::SlideForces,
+}
+
+/// What the caller hands in: the stop check, the progress line, the memory limit.
+struct Hooks {
+    stop: Option<StopCheck>,
+    /// Where the steps are, for a progress line (`progress.rs`); written, never read.
+    progress: Option<Arc<Progress>>,
+    /// The memory limit the pattern was built within (kept for rebuilds).
+    max_bytes: Option<u64>,
+}
+
+/// Settings fixed at build (tests change them to compare variants).
+struct Modes {
     /// Never split (tests).
     whole_only: bool,
     /// Most low-rank columns a contact step adds to a kept factor for contacts that rejoin
@@ -285,9 +266,27 @@ pub struct Integrator {
     /// pass-throughs and one failed run in 8 where the plain steps gave 1 and none.
     /// Tests set it to compare.
     tails: bool,
-    /// Per element scratch (energies, gradient magnitudes), summed in element order so every
-    /// total is bit-identical at any thread count.
-    per_element: RefCell<Vec<f64>>,
+}
+
+/// A stepper for one system: owns the sparsity pattern, the symbolic factorization and every
+/// work buffer, so stepping allocates nothing per iteration.
+pub struct Integrator {
+    /// The pattern, the slots and the assembled values ([`LinearSystem`]).
+    lin: LinearSystem,
+    /// The factorization and the preconditioners ([`Directions`]).
+    dirs: Directions,
+    /// Work buffers ([`Work`]).
+    work: Work,
+    /// Sliders' state ([`Sliders`]).
+    sliders: Sliders,
+    /// The caller's stop check, progress line and memory limit ([`Hooks`]).
+    hooks: Hooks,
+    /// Settings fixed at build ([`Modes`]).
+    modes: Modes,
+    /// The rods' second-order correction (their segments and its scratch).
+    correction: correction::LengthCorrection,
+    /// The lagging vertices' local solves (`elimination.rs`): adjacency built on first use.
+    elimination: elimination::Elimination,
     /// Per element: the negative curvature its contact-step Hessian may keep
     /// ([`Integrator::fill_budget`]), and the step and fraction it was filled for.
     budget: Vec<f64>,
@@ -299,26 +298,8 @@ pub struct Integrator {
     /// Σ |gradient entries| of every term at the last assembly: with the size of the
     /// positions it bounds the floating-point resolution of the objective.
     force_scale: f64,
-    stop: Option<StopCheck>,
-    /// Where the steps are, for a progress line (`progress.rs`); written, never read.
-    progress: Option<Arc<Progress>>,
-    /// The memory limit the pattern was built within (kept for rebuilds).
-    max_bytes: Option<u64>,
-    /// Blocks beyond the elements' (free index pairs, sorted, lower first): the last
-    /// contacts' between vertices that share no element.
-    extra: Vec<(u32, u32)>,
     /// Rigid groups: their nodes, members and Jacobians' data (`rigid.rs`).
     groups: rigid::Groups,
-    /// Per free vertex: its slider's index in the system, or NONE (`sliding.rs`).
-    slide_of: Vec<u32>,
-    /// Per slider: its projector at the last assembly, and its diagonal's mean before it.
-    slide_proj: Vec<nalgebra::Matrix3<f64>>,
-    slide_scale: Vec<f64>,
-    /// Per slider: the normal force its friction reads at the last assembly [N].
-    slide_normal: Vec<f64>,
-    /// Per slider: the force its target supplies, as the Newton model predicts it
-    /// (`sliding.rs`, `SlideForces`).
-    slide_forces: sliding::SlideForces,
     /// Per membrane (the first elements), the stress whose tension its Hessian's geometric
     /// term reads in a contact-free Newton step's first tries: the mixed form's carried
     /// stress (`Membrane::eval_carried`), started at each step from the stress at x⁰ and
@@ -332,12 +313,12 @@ impl Integrator {
     /// Sets (or clears) the check asked once per Newton iteration; when it answers true the
     /// step ends with [`StepError::Interrupted`] and the state is left as it was.
     pub fn set_stop(&mut self, stop: Option<StopCheck>) {
-        self.stop = stop;
+        self.hooks.stop = stop;
     }
 
     /// Sets (or clears) where the steps store their progress for a progress line.
     pub fn set_progress(&mut self, progress: Option<Arc<Progress>>) {
-        self.progress = progress;
+        self.hooks.progress = progress;
     }
 
     /// Says how much more the process may allocate now (`available` bytes, as measured by its
@@ -348,32 +329,32 @@ impl Integrator {
     /// sheet failed to allocate at the first step with the limit of the setup frame. Without
     /// a limit (`new`), none is set.
     pub fn set_available(&mut self, available: u64) {
-        if self.max_bytes.is_some() {
-            self.max_bytes = Some(available.saturating_add(self.held_bytes()));
+        if self.hooks.max_bytes.is_some() {
+            self.hooks.max_bytes = Some(available.saturating_add(self.held_bytes()));
         }
     }
 
     /// Takes `old`'s stop check and progress (an integrator built anew for another structure
     /// answers the same stop and reports to the same line).
     pub fn keep_hooks(&mut self, old: Integrator) {
-        self.stop = old.stop;
-        self.progress = old.progress;
+        self.hooks.stop = old.hooks.stop;
+        self.hooks.progress = old.hooks.progress;
     }
 
     /// Where the steps store their progress, if anywhere.
     pub fn progress(&self) -> Option<&Arc<Progress>> {
-        self.progress.as_ref()
+        self.hooks.progress.as_ref()
     }
 
     /// Stores Newton iteration `iteration`'s (1-based) step [m/s] for the progress line.
     fn report_newton(&self, iteration: usize, step: f64) {
-        if let Some(p) = &self.progress {
+        if let Some(p) = &self.hooks.progress {
             p.newton(iteration, step);
         }
     }
 
     fn should_stop(&self) -> bool {
-        self.stop.as_ref().is_some_and(|s| s())
+        self.hooks.stop.as_ref().is_some_and(|s| s())
     }
 
     /// Builds the pattern and symbolic factorization for `sys`.
@@ -408,30 +389,36 @@ impl Integrator {
         sys: &SolidSystem,
         extra: Vec<(u32, u32)>,
     ) -> Result<bool, StepError> {
-        if extra == self.extra {
+        if extra == self.lin.extra {
             return Ok(false);
         }
-        let (stop, progress) = (self.stop.take(), self.progress.take());
-        let (joined_max, tails) = (self.joined_max, self.tails);
+        let (stop, progress) = (self.hooks.stop.take(), self.hooks.progress.take());
+        let (joined_max, tails) = (self.modes.joined_max, self.modes.tails);
         // The new pattern and factors are built while these are held.
         let room = self
+            .hooks
             .max_bytes
             .map(|limit| limit.saturating_sub(self.held_bytes()));
-        *self = Self::build(sys, (self.max_bytes, room), extra, self.whole_only)?;
-        self.stop = stop;
-        self.progress = progress;
-        self.joined_max = joined_max;
-        self.tails = tails;
+        *self = Self::build(
+            sys,
+            (self.hooks.max_bytes, room),
+            extra,
+            self.modes.whole_only,
+        )?;
+        self.hooks.stop = stop;
+        self.hooks.progress = progress;
+        self.modes.joined_max = joined_max;
+        self.modes.tails = tails;
         Ok(true)
     }
 
     /// The memory the pattern's buffers and the factors hold, as estimated against the limit
     /// when they were built.
     fn held_bytes(&self) -> u64 {
-        let pre = [self.one_ring.as_ref(), self.single.as_ref()];
+        let pre = [self.dirs.one_ring.as_ref(), self.dirs.single.as_ref()];
         pre.into_iter()
             .flatten()
-            .fold(self.factor.bytes(), |b, o| b.saturating_add(o.bytes()))
+            .fold(self.dirs.factor.bytes(), |b, o| b.saturating_add(o.bytes()))
     }
 
     /// The integrator for `sys` with the pattern's `extra` blocks: `max_bytes` the limit it
@@ -630,31 +617,64 @@ impl Integrator {
             })
             .collect();
         let parts = partition::partition(stencils, n, &sys.layout);
+        let values = vec![0.0; row_idx.len()];
+        let per_element = RefCell::new(vec![0.0; slot_offset.len()]);
         Ok(Integrator {
-            n,
-            free_of,
-            n_free,
-            values: vec![0.0; row_idx.len()],
-            col_ptr,
-            row_idx,
-            slots,
-            diag_slot,
-            upper_src,
-            upper_start,
-            factor,
-            one_ring: None,
-            single: None,
-            one_ring_tried: false,
-            pcg_single: false,
-            pcg: false,
-            grad: vec![0.0; dofs],
-            dir: vec![0.0; dofs],
-            x_hat: vec![Vector3::zeros(); n],
-            x_trial: vec![Vector3::zeros(); n],
-            x_soc: vec![Vector3::zeros(); n],
-            curv_v: Vec::new(),
-            curv_w: Vec::new(),
-            curv_d: Vec::new(),
+            lin: LinearSystem {
+                n,
+                free_of,
+                n_free,
+                col_ptr,
+                row_idx,
+                values,
+                slots,
+                diag_slot,
+                upper_src,
+                upper_start,
+                slot_offset,
+                parts,
+                extra,
+            },
+            dirs: Directions {
+                factor,
+                one_ring: None,
+                single: None,
+                one_ring_tried: false,
+                pcg_single: false,
+                pcg: false,
+            },
+            work: Work {
+                grad: vec![0.0; dofs],
+                dir: vec![0.0; dofs],
+                x_hat: vec![Vector3::zeros(); n],
+                x_trial: vec![Vector3::zeros(); n],
+                x_soc: vec![Vector3::zeros(); n],
+                curv_v: Vec::new(),
+                curv_w: Vec::new(),
+                curv_d: Vec::new(),
+                local: Local::default(),
+                per_element,
+            },
+            sliders: Sliders {
+                slide_of: Vec::new(),
+                slide_proj: Vec::new(),
+                slide_scale: Vec::new(),
+                slide_normal: Vec::new(),
+                slide_forces: sliding::SlideForces::default(),
+            },
+            hooks: Hooks {
+                stop: None,
+                progress: None,
+                max_bytes,
+            },
+            modes: Modes {
+                whole_only,
+                joined_max: contacts::JOINED_MAX,
+                tails: !sys.elements.membranes.is_empty()
+                    && sys.elements.stretches.is_empty()
+                    && sys.elements.bends.is_empty()
+                    && sys.elements.clamps.is_empty(),
+            },
             elimination: elimination::Elimination::default(),
             correction: correction::LengthCorrection::new(
                 sys.elements
@@ -664,49 +684,30 @@ impl Integrator {
                     .collect(),
                 n,
             ),
-            local: Local::default(),
             force_scale: 0.0,
-            stop: None,
-            progress: None,
-            max_bytes,
-            extra,
             groups,
-            slide_of: Vec::new(),
-            slide_proj: Vec::new(),
-            slide_scale: Vec::new(),
-            slide_normal: Vec::new(),
-            slide_forces: sliding::SlideForces::default(),
             carried: Vec::new(),
-            per_element: RefCell::new(vec![0.0; slot_offset.len()]),
             budget: Vec::new(),
             budget_for: (f64::NAN, f64::NAN),
             hinges: (!sys.elements.midedges.is_empty())
                 .then(|| RefCell::new(SharedHinges::new(&sys.elements.midedges))),
             midedges: sys.elements.midedge_range(),
-            whole_only,
-            joined_max: contacts::JOINED_MAX,
-            tails: !sys.elements.membranes.is_empty()
-                && sys.elements.stretches.is_empty()
-                && sys.elements.bends.is_empty()
-                && sys.elements.clamps.is_empty(),
-            slot_offset,
-            parts,
         })
     }
 
     /// Nonzeros stored in the system matrix (both triangles).
     pub fn nonzeros(&self) -> usize {
-        self.row_idx.len()
+        self.lin.row_idx.len()
     }
 
     /// Whether vertex `i` is held (pinned): neither free nor in a rigid group.
     fn held(&self, i: usize) -> bool {
-        self.free_of[i] == NONE && self.groups.of.get(i).is_none_or(|&g| g == NONE)
+        self.lin.free_of[i] == NONE && self.groups.of.get(i).is_none_or(|&g| g == NONE)
     }
 
     /// Free (unpinned) vertices.
     pub fn free_vertices(&self) -> usize {
-        self.n_free
+        self.lin.n_free
     }
 
     fn objective(
@@ -717,7 +718,7 @@ impl Integrator {
         mode: Mode,
     ) -> f64 {
         let mut e = 0.0;
-        for i in 0..self.n {
+        for i in 0..self.lin.n {
             if !self.held(i) {
                 let m = sys.mass[i];
                 e += match mode {
@@ -727,7 +728,7 @@ impl Integrator {
                 };
             }
         }
-        let mut per = self.per_element.borrow_mut();
+        let mut per = self.work.per_element.borrow_mut();
         let parallel = per.len() >= PARALLEL_MIN && rayon::current_num_threads() > 1;
         if let Some(h) = &self.hinges {
             refresh_hinges(&mut h.borrow_mut(), x, false);
@@ -771,7 +772,7 @@ impl Integrator {
         i: usize,
     ) -> f64 {
         let m = sys.mass[i];
-        let mut e = m / (2.0 * h * h) * (x[i] - self.x_hat[i]).norm_squared()
+        let mut e = m / (2.0 * h * h) * (x[i] - self.work.x_hat[i]).norm_squared()
             + sys.damping(i) * m / (2.0 * h) * (x[i] - x0[i]).norm_squared();
         // Drag: (1/2h) rᵀDr with r = x − x⁰ − h u, whose gradient is D(v − u).
         if let Some(d) = sys.drag(i) {
@@ -793,7 +794,7 @@ impl Integrator {
     ) -> (Vector3<f64>, Matrix3<f64>) {
         let m = sys.mass[i];
         let (a, b) = (m / (h * h), sys.damping(i) * m / h);
-        let mut g = a * (x[i] - self.x_hat[i]) + b * (x[i] - x0[i]);
+        let mut g = a * (x[i] - self.work.x_hat[i]) + b * (x[i] - x0[i]);
         let mut hess = (a + b) * Matrix3::identity();
         if let Some(d) = sys.drag(i) {
             g += d.matrix * ((x[i] - x0[i]) / h - d.flow);
@@ -816,14 +817,14 @@ impl Integrator {
         mode: Mode,
         hessians: Hessians,
     ) {
-        self.grad.iter_mut().for_each(|g| *g = 0.0);
-        self.values.iter_mut().for_each(|v| *v = 0.0);
+        self.work.grad.iter_mut().for_each(|g| *g = 0.0);
+        self.lin.values.iter_mut().for_each(|v| *v = 0.0);
         self.force_scale = 0.0;
         if !self.groups.is_empty() {
             self.assemble_members(sys, x, x0, mode);
         }
-        for i in 0..self.n {
-            let f = self.free_of[i];
+        for i in 0..self.lin.n {
+            let f = self.lin.free_of[i];
             if f == NONE {
                 continue;
             }
@@ -831,7 +832,7 @@ impl Integrator {
             let (g, diag) = match mode {
                 Mode::Dynamic { h } => {
                     let (a, b) = (m / (h * h), sys.damping(i) * m / h);
-                    (a * (x[i] - self.x_hat[i]) + b * (x[i] - x0[i]), a + b)
+                    (a * (x[i] - self.work.x_hat[i]) + b * (x[i] - x0[i]), a + b)
                 }
                 Mode::Static => (-(m * sys.gravity + sys.force(i)), 0.0),
             };
@@ -840,15 +841,15 @@ impl Integrator {
             if let (Mode::Dynamic { h }, Some(d)) = (mode, sys.drag(i)) {
                 // Gradient D(v − u), Hessian D/h: a full 3×3 diagonal block.
                 g += d.matrix * ((x[i] - x0[i]) / h - d.flow);
-                let block = self.block_mut(f, self.diag_slot[f] as usize);
+                let block = self.lin.block_mut(f, self.lin.diag_slot[f] as usize);
                 for (v, m) in block.iter_mut().zip(d.matrix.as_slice()) {
                     *v += m / h;
                 }
             }
             for c in 0..3 {
-                self.grad[3 * f + c] += g[c];
-                let k = self.diagonal_entry(f, c);
-                self.values[k] += diag;
+                self.work.grad[3 * f + c] += g[c];
+                let k = self.lin.diagonal_entry(f, c);
+                self.lin.values[k] += diag;
             }
             self.force_scale += g.abs().sum();
         }
@@ -856,12 +857,16 @@ impl Integrator {
         if let Some(h) = self.hinges.as_mut() {
             refresh_hinges(h.get_mut(), x, true);
         }
-        let values = Shared(self.values.as_mut_ptr());
-        let grad = Shared(self.grad.as_mut_ptr());
-        let mut per = self.per_element.borrow_mut();
+        let values = Shared(self.lin.values.as_mut_ptr());
+        let grad = Shared(self.work.grad.as_mut_ptr());
+        let mut per = self.work.per_element.borrow_mut();
         let scale = Shared(per.as_mut_ptr());
-        let (free_of, col_ptr, slots, offsets) =
-            (&self.free_of, &self.col_ptr, &self.slots, &self.slot_offset);
+        let (free_of, col_ptr, slots, offsets) = (
+            &self.lin.free_of,
+            &self.lin.col_ptr,
+            &self.lin.slots,
+            &self.lin.slot_offset,
+        );
         let hinges_ref = self.hinges.as_ref().map(|h| h.borrow());
         let hinges = hinges_ref.as_deref();
         let midedges = &self.midedges;
@@ -903,10 +908,10 @@ impl Integrator {
                 };
             })
         };
-        self.parts.run(&work, parallel);
+        self.lin.parts.run(&work, parallel);
         drop(per);
         drop(hinges_ref);
-        self.mirror_upper();
+        self.lin.mirror_upper();
         if !self.groups.is_empty() {
             // Elements with a member: through the groups' Jacobians, in element order.
             // The scratch moves out by its box (a `Local` is 73 kB: moving it by value per
@@ -926,55 +931,17 @@ impl Integrator {
                     Hessians::Contact => el.eval_contact(x, self.budget[ei], &mut local),
                 }
                 let k3 = 3 * el.vertices().len();
-                self.per_element.borrow_mut()[ei] =
+                self.work.per_element.borrow_mut()[ei] =
                     local.grad[..k3].iter().map(|g| g.abs()).sum::<f64>();
                 self.add_element_through_groups(el.vertices(), &local);
             }
             self.groups.local = Some(local);
             self.finish_groups(hessians);
         }
-        let per = self.per_element.borrow();
+        let per = self.work.per_element.borrow();
         self.force_scale = per.iter().fold(self.force_scale, |a, b| a + b);
         drop(per);
         self.filter_sliders(sys, x, x0, mode);
-    }
-
-    /// Copies every block below the diagonal onto its transpose above it, which the
-    /// elements did not write. Whatever was added above the diagonal before (the rigid
-    /// groups' members' terms, added to both triangles alike) is overwritten by its mirror
-    /// image, so the matrix is exactly symmetric.
-    fn mirror_upper(&mut self) {
-        let values = Shared(self.values.as_mut_ptr());
-        let (col_ptr, row_idx, diag_slot) = (&self.col_ptr, &self.row_idx, &self.diag_slot);
-        let (upper_src, upper_start) = (&self.upper_src, &self.upper_start);
-        // Columns `range`'s blocks above the diagonal, from their transposes below it.
-        // SAFETY: a column's upper blocks are written by its own chunk only, and the blocks
-        // read (below the diagonal) are never written here; the pointers cover `values`.
-        let mirror = |range: std::ops::Range<usize>| unsafe {
-            for j in range {
-                let base = col_ptr[3 * j];
-                for s in 0..diag_slot[j] as usize {
-                    let i = row_idx[base + 3 * s] / 3;
-                    let src = col_ptr[3 * i] + 9 * upper_src[upper_start[j] + s] as usize;
-                    let dst = base + 9 * s;
-                    for cc in 0..3 {
-                        for rr in 0..3 {
-                            *values.at(dst + 3 * cc + rr) = *values.at(src + 3 * rr + cc);
-                        }
-                    }
-                }
-            }
-        };
-        // Copies only: the same bits on any number of threads. (Small chunks in tests, so
-        // their small systems take the parallel path.)
-        const CHUNK: usize = if cfg!(test) { 8 } else { 2048 };
-        if self.n_free >= 2 * CHUNK && rayon::current_num_threads() > 1 {
-            (0..self.n_free.div_ceil(CHUNK))
-                .into_par_iter()
-                .for_each(|c| mirror(c * CHUNK..((c + 1) * CHUNK).min(self.n_free)));
-        } else {
-            mirror(0..self.n_free);
-        }
     }
 
     /// The rigid groups' members' own terms (inertia, damping, drag, or the static loads),
@@ -1014,40 +981,17 @@ impl Integrator {
         if !self.groups.is_empty() {
             self.add_to_group_diagonals(&mu);
         }
-        for i in 0..self.n {
-            let f = self.free_of[i];
+        for i in 0..self.lin.n {
+            let f = self.lin.free_of[i];
             if f == NONE {
                 continue;
             }
             let mu = mu(i);
             for c in 0..3 {
-                let k = self.diagonal_entry(f as usize, c);
-                self.values[k] += mu;
+                let k = self.lin.diagonal_entry(f as usize, c);
+                self.lin.values[k] += mu;
             }
         }
-    }
-
-    /// The slot of block (row vertex `r`, column vertex `c`, free indices or group nodes)
-    /// among column vertex c's blocks, when the pattern holds it (a column's rows are
-    /// sorted, three to a block).
-    fn block_slot(&self, r: usize, c: usize) -> Option<usize> {
-        let (lo, hi) = (self.col_ptr[3 * c], self.col_ptr[3 * c + 1]);
-        self.row_idx[lo..hi]
-            .binary_search(&(3 * r))
-            .ok()
-            .map(|k| k / 3)
-    }
-
-    /// The nine values of block (slot `s`, column vertex `c`), column-major (as nalgebra's
-    /// `Matrix3::as_slice`).
-    fn block_mut(&mut self, c: usize, s: usize) -> &mut [f64] {
-        let k = block_entry(&self.col_ptr, c, s, 0, 0);
-        &mut self.values[k..k + 9]
-    }
-
-    /// The index in `values` of DOF c's diagonal entry of free vertex f.
-    fn diagonal_entry(&self, f: usize, c: usize) -> usize {
-        block_entry(&self.col_ptr, f, self.diag_slot[f] as usize, c, c)
     }
 
     /// `dir` ← −H⁻¹ `grad` with the last factor, or by conjugate gradients preconditioned
@@ -1055,14 +999,14 @@ impl Integrator {
     /// non-positive curvature (H is not positive definite). Should they not converge, the
     /// rest of the step factors H itself, starting with this direction.
     fn solve_direction(&mut self, stats: &mut StepStats) -> bool {
-        if let Some(pre) = preconditioner!(self) {
+        if let Some(pre) = self.dirs.preconditioner() {
             let t = Instant::now();
             let (outcome, its) = pre.solve(
-                &self.values,
-                &self.col_ptr,
-                &self.row_idx,
-                &self.grad,
-                &mut self.dir,
+                &self.lin.values,
+                &self.lin.col_ptr,
+                &self.lin.row_idx,
+                &self.work.grad,
+                &mut self.work.dir,
             );
             stats.solve_seconds += t.elapsed().as_secs_f64();
             stats.cg_iterations += its;
@@ -1070,25 +1014,25 @@ impl Integrator {
                 one_ring::Outcome::Converged => return true,
                 one_ring::Outcome::Indefinite => return false,
                 one_ring::Outcome::Failed => {
-                    self.pcg = false;
+                    self.dirs.pcg = false;
                     if !self.try_factor(stats) {
                         return false;
                     }
                 }
             }
         }
-        for (d, g) in self.dir.iter_mut().zip(&self.grad) {
+        for (d, g) in self.work.dir.iter_mut().zip(&self.work.grad) {
             *d = -g;
         }
-        let mut dir = std::mem::take(&mut self.dir);
+        let mut dir = std::mem::take(&mut self.work.dir);
         self.solve_in_place(stats, &mut dir);
-        self.dir = dir;
+        self.work.dir = dir;
         true
     }
 
     /// ‖dir‖∞ · `scale` (the residual the tolerance is compared with).
     fn direction_size(&self, scale: f64) -> f64 {
-        self.step_size(&self.dir) * scale
+        self.step_size(&self.work.dir) * scale
     }
 
     /// The largest displacement of a vertex by the step `d` (over the nodes): a group's
@@ -1118,7 +1062,7 @@ impl Integrator {
         if !self.solve_direction(stats) {
             // Conjugate gradients met non-positive curvature in a matrix meant to be
             // positive definite (projected): H's own factor decides, its shift grown as needed.
-            self.pcg = false;
+            self.dirs.pcg = false;
             self.factor(stats, 0.0)?;
             self.solve_direction(stats);
         }
@@ -1148,7 +1092,7 @@ impl Integrator {
                 }
                 // A NaN or infinite entry (a degenerate element, a diverged iterate) fails
                 // at every shift: say so, instead of shifting by a scale the NaN hides.
-                Err(_) if tries == 0 && self.values.iter().any(|v| !v.is_finite()) => {
+                Err(_) if tries == 0 && self.lin.values.iter().any(|v| !v.is_finite()) => {
                     return Err(StepError::Factorization(
                         "the Newton matrix has non-finite entries (NaN or infinite)".into(),
                     ));
@@ -1157,7 +1101,7 @@ impl Integrator {
                     let more = if applied == 0.0 {
                         // The matrix is still unshifted here: its largest entry sets the
                         // first shift (taken only on failure: a pass over every value).
-                        let scale = self.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                        let scale = self.lin.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
                         1e-10 * scale.max(f64::MIN_POSITIVE)
                     } else {
                         99.0 * applied
@@ -1192,16 +1136,16 @@ impl Integrator {
     /// was positive definite, or `None` when H is to be factored instead (no preconditioner,
     /// or it declined: then the rest of the step factors H).
     fn factor_preconditioner(&mut self, certify: bool) -> Option<bool> {
-        let pre: Option<&mut one_ring::OneRing> = preconditioner!(self);
-        match pre?.factor(&self.values, certify) {
+        let pre: Option<&mut one_ring::OneRing> = self.dirs.preconditioner();
+        match pre?.factor(&self.lin.values, certify) {
             one_ring::Factored::Positive => Some(true),
             one_ring::Factored::NotPositive => Some(false),
-            one_ring::Factored::Declined if !self.pcg_single && self.single.is_some() => {
-                self.pcg_single = true;
+            one_ring::Factored::Declined if !self.dirs.pcg_single && self.dirs.single.is_some() => {
+                self.dirs.pcg_single = true;
                 self.factor_preconditioner(certify)
             }
             one_ring::Factored::Declined => {
-                self.pcg = false;
+                self.dirs.pcg = false;
                 None
             }
         }
@@ -1209,7 +1153,7 @@ impl Integrator {
 
     /// One numeric Cholesky factorization of `values`.
     fn factor_once(&mut self) -> Result<(), faer::linalg::solvers::LltError> {
-        self.factor.factor(&self.values)
+        self.dirs.factor.factor(&self.lin.values)
     }
 
     /// Fills `budget` for [`Hessians::Contact`]: element e may keep negative curvature down
@@ -1304,7 +1248,7 @@ impl Integrator {
         let t = Instant::now();
         self.assemble_with(sys, x, x0, Mode::Dynamic { h }, Hessians::First);
         stats.assembly_seconds += t.elapsed().as_secs_f64();
-        if !self.grad.iter().all(|g| g.is_finite()) {
+        if !self.work.grad.iter().all(|g| g.is_finite()) {
             return None;
         }
         self.factor_first(sys, h, last_shift, stats)
@@ -1356,7 +1300,7 @@ impl Integrator {
         alpha: f64,
         trial: &mut [Vector3<f64>],
     ) {
-        for ((t, p), &f) in trial.iter_mut().zip(x).zip(&self.free_of) {
+        for ((t, p), &f) in trial.iter_mut().zip(x).zip(&self.lin.free_of) {
             *t = if f == NONE {
                 *p
             } else {
@@ -1371,16 +1315,16 @@ impl Integrator {
     /// `b` ← A⁻¹ `b` with the factor the last direction was found with: the
     /// preconditioner's while conjugate gradients are on, else H's.
     fn solve_with_last(&mut self, b: &mut [f64]) {
-        match preconditioner!(self) {
+        match self.dirs.preconditioner() {
             Some(pre) => pre.apply(b),
-            None => self.factor.solve_in_place(b),
+            None => self.dirs.factor.solve_in_place(b),
         }
     }
 
     /// Solves with the last factor in place (`b` ← H⁻¹ b, 3 entries per free vertex).
     fn solve_in_place(&mut self, stats: &mut StepStats, b: &mut [f64]) {
         let t = Instant::now();
-        self.factor.solve_in_place(b);
+        self.dirs.factor.solve_in_place(b);
         stats.solve_seconds += t.elapsed().as_secs_f64();
     }
 
@@ -1472,11 +1416,11 @@ impl Integrator {
         }
         let mut x = state.x.clone();
         if settings.method == Method::Static {
-            for i in (0..self.n).filter(|&i| self.held(i)) {
+            for i in (0..self.lin.n).filter(|&i| self.held(i)) {
                 x[i] = target(i);
             }
             if let Some(g) = guess {
-                for i in (0..self.n).filter(|&i| !self.held(i)) {
+                for i in (0..self.lin.n).filter(|&i| !self.held(i)) {
                     x[i] = g[i];
                 }
             }
@@ -1492,7 +1436,7 @@ impl Integrator {
         let stats = in_pool(self.threaded(), || {
             self.minimize(sys, &mut x, &x0, Mode::Dynamic { h }, settings)
         })?;
-        for i in 0..self.n {
+        for i in 0..self.lin.n {
             state.v[i] = (x[i] - x0[i]) / h;
         }
         state.x = x;
@@ -1511,13 +1455,13 @@ impl Integrator {
         h: f64,
     ) {
         let x0 = &state.x;
-        for i in 0..self.n {
+        for i in 0..self.lin.n {
             if self.held(i) {
                 x[i] = target(i);
-                self.x_hat[i] = x[i];
+                self.work.x_hat[i] = x[i];
             } else {
                 // x̂ = x⁰ + h v⁰ + h² (g + f/m): constant forces act like gravity.
-                self.x_hat[i] =
+                self.work.x_hat[i] =
                     x0[i] + h * state.v[i] + h * h * (sys.gravity + sys.force(i) / sys.mass[i]);
                 x[i] = guess.map_or(x0[i] + h * state.v[i], |g| g[i]);
             }
@@ -1566,19 +1510,19 @@ impl Integrator {
     /// Whether this system has work for more than one thread (an assembly tree with a split,
     /// or a split factorization): its steps then run on a pool worker ([`in_pool`]).
     fn threaded(&self) -> bool {
-        self.factor.split.is_some()
-            || self.one_ring.as_ref().is_some_and(|o| o.is_split())
-            || self.single.is_some()
-            || matches!(self.parts, partition::Part::Split { .. })
+        self.dirs.factor.split.is_some()
+            || self.dirs.one_ring.as_ref().is_some_and(|o| o.is_split())
+            || self.dirs.single.is_some()
+            || matches!(self.lin.parts, partition::Part::Split { .. })
     }
 
     /// Each free node's block neighbours in H's pattern (itself included, sorted).
     fn vertex_graph(&self) -> Vec<Vec<u32>> {
-        (0..self.n_free)
+        (0..self.lin.n_free)
             .map(|v| {
-                (self.col_ptr[3 * v]..self.col_ptr[3 * v + 1])
+                (self.lin.col_ptr[3 * v]..self.lin.col_ptr[3 * v + 1])
                     .step_by(3)
-                    .map(|k| (self.row_idx[k] / 3) as u32)
+                    .map(|k| (self.lin.row_idx[k] / 3) as u32)
                     .collect()
             })
             .collect()
@@ -1592,13 +1536,18 @@ impl Integrator {
         sys: &SolidSystem,
         max_bytes: Option<u64>,
     ) -> Result<Option<one_ring::OneRing>, StepError> {
-        if self.factor.flops() < one_ring::SINGLE_MIN_FLOPS
+        if self.dirs.factor.flops() < one_ring::SINGLE_MIN_FLOPS
             || !sys.rigid.is_empty()
-            || self.whole_only
+            || self.modes.whole_only
         {
             return Ok(None);
         }
-        one_ring::OneRing::single(&self.factor, &self.col_ptr, &self.row_idx, max_bytes)
+        one_ring::OneRing::single(
+            &self.dirs.factor,
+            &self.lin.col_ptr,
+            &self.lin.row_idx,
+            max_bytes,
+        )
     }
 
     /// The one-ring preconditioner for this pattern (`one_ring.rs`), where it pays: its
@@ -1613,7 +1562,7 @@ impl Integrator {
     ) -> Result<Option<one_ring::OneRing>, StepError> {
         let first = self.groups.first;
         let nbrs = self.vertex_graph();
-        let mut keep: Vec<Vec<u32>> = (0..self.n_free as u32).map(|j| vec![j]).collect();
+        let mut keep: Vec<Vec<u32>> = (0..self.lin.n_free as u32).map(|j| vec![j]).collect();
         for (v, l) in nbrs.iter().enumerate() {
             if v >= first {
                 keep[v].clone_from(l);
@@ -1621,13 +1570,13 @@ impl Integrator {
                 keep[v].extend(l.iter().filter(|&&r| r as usize >= first));
             }
         }
-        for &(a, b) in &self.extra {
-            if let (Some(la), true) = (keep.get_mut(a as usize), (b as usize) < self.n_free) {
+        for &(a, b) in &self.lin.extra {
+            if let (Some(la), true) = (keep.get_mut(a as usize), (b as usize) < self.lin.n_free) {
                 la.push(b);
                 keep[b as usize].push(a);
             }
         }
-        let node = |v: u32| self.free_of.get(v as usize).copied().unwrap_or(NONE);
+        let node = |v: u32| self.lin.free_of.get(v as usize).copied().unwrap_or(NONE);
         sys.elements.for_each(|e| {
             if e.vertices().len() <= 3 {
                 for &a in e.vertices() {
@@ -1644,14 +1593,14 @@ impl Integrator {
             l.sort_unstable();
             l.dedup();
         }
-        let at = free_layout(sys, &self.free_of, first);
+        let at = free_layout(sys, &self.lin.free_of, first);
         one_ring::OneRing::new(
             &nbrs,
-            &self.col_ptr,
+            &self.lin.col_ptr,
             &keep,
-            self.factor.flops(),
+            self.dirs.factor.flops(),
             &at,
-            sys.rigid.is_empty() && !self.whole_only,
+            sys.rigid.is_empty() && !self.modes.whole_only,
             max_bytes,
         )
     }
@@ -1669,37 +1618,38 @@ impl Integrator {
         mode: Mode,
         settings: &Settings,
     ) -> Result<StepStats, StepError> {
-        self.pcg = matches!(mode, Mode::Dynamic { .. }) && settings.method == Method::Newton;
-        if self.pcg && !self.one_ring_tried {
-            self.one_ring_tried = true;
+        self.dirs.pcg = matches!(mode, Mode::Dynamic { .. }) && settings.method == Method::Newton;
+        if self.dirs.pcg && !self.dirs.one_ring_tried {
+            self.dirs.one_ring_tried = true;
             // Not paying, or too large for the memory limit: H's factor serves as before. The
             // limit holds for all the factors together: each preconditioner gets half of what
             // H's factor and the one built before it left. Half: they are optional, and the
             // rest of the run (its output nodes, a rebuild for contacts) needs room too
             // (measured under `ulimit -v` 400 MiB on a 100² sheet, a twin that took all of
             // it left a 600 KiB preview refused).
-            let max = self.max_bytes;
+            let max = self.hooks.max_bytes;
             let left = |used: u64| max.map(|m| m.saturating_sub(used) / 2);
-            self.one_ring = self
-                .build_one_ring(sys, left(self.factor.bytes()))
+            self.dirs.one_ring = self
+                .build_one_ring(sys, left(self.dirs.factor.bytes()))
                 .ok()
                 .flatten();
-            let used = self.factor.bytes() + self.one_ring.as_ref().map_or(0, |o| o.bytes());
-            self.single = self.build_single(sys, left(used)).ok().flatten();
+            let used =
+                self.dirs.factor.bytes() + self.dirs.one_ring.as_ref().map_or(0, |o| o.bytes());
+            self.dirs.single = self.build_single(sys, left(used)).ok().flatten();
         }
         if let Mode::Dynamic { h } = mode {
-            for pre in [self.one_ring.as_mut(), self.single.as_mut()]
+            for pre in [self.dirs.one_ring.as_mut(), self.dirs.single.as_mut()]
                 .into_iter()
                 .flatten()
             {
-                pre.set_inertia(&self.free_of, &sys.mass, h);
+                pre.set_inertia(&self.lin.free_of, &sys.mass, h);
             }
         }
         // The one-ring's factor first (the cheaper one); the single-precision one where
         // there is no one-ring, or from where it declines.
-        self.pcg_single = self.one_ring.is_none();
+        self.dirs.pcg_single = self.dirs.one_ring.is_none();
         let out = self.newton(sys, x, x0, mode, settings);
-        self.pcg = false;
+        self.dirs.pcg = false;
         // Carried stresses belong to this step's iteration only.
         self.carried.clear();
         out
@@ -1762,10 +1712,10 @@ impl Integrator {
                     stats.projected += 1;
                 }
             }
-            if !self.grad.iter().all(|g| g.is_finite()) {
+            if !self.work.grad.iter().all(|g| g.is_finite()) {
                 return Err(StepError::NonFinite { iteration: it });
             }
-            let gnorm = self.grad.iter().fold(0.0f64, |m, g| m.max(g.abs()));
+            let gnorm = self.work.grad.iter().fold(0.0f64, |m, g| m.max(g.abs()));
             if it == 0 {
                 g0 = gnorm.max(f64::MIN_POSITIVE);
             }
@@ -1773,7 +1723,7 @@ impl Integrator {
             // so free modes stay regular while convergence stays superlinear.
             let shift = match mode {
                 Mode::Static => {
-                    1e-9 * self.values.iter().fold(0.0f64, |m, v| m.max(v.abs()))
+                    1e-9 * self.lin.values.iter().fold(0.0f64, |m, v| m.max(v.abs()))
                         * (gnorm / g0).clamp(1e-4, 1.0)
                 }
                 Mode::Dynamic { .. } => 0.0,
@@ -1803,7 +1753,8 @@ impl Integrator {
             // Stopping before it would leave a step that starts below the tolerance (a
             // body at rest whose first velocity change g·h is below it) where it started.
             // (Not an iteration that left a slider's friction out: `SlideForces`.)
-            let done = !linearized && res < settings.tolerance && !self.slide_forces.frictionless;
+            let done =
+                !linearized && res < settings.tolerance && !self.sliders.slide_forces.frictionless;
             // Backtracking line search on the objective (Armijo, c = 1e-4).
             // (Not needed when the whole step is taken.)
             // Sliders' friction depends on this iteration's normal forces: a new objective.
@@ -1815,7 +1766,12 @@ impl Integrator {
             } else {
                 (
                     e_at_x.unwrap_or_else(|| self.objective(sys, x, x0, mode)),
-                    self.grad.iter().zip(&self.dir).map(|(g, d)| g * d).sum(),
+                    self.work
+                        .grad
+                        .iter()
+                        .zip(&self.work.dir)
+                        .map(|(g, d)| g * d)
+                        .sum(),
                     x.iter().fold(0.0f64, |m, p| m.max(p.amax())),
                 )
             };
@@ -1826,7 +1782,7 @@ impl Integrator {
                 Mode::Dynamic { h }
                     if !linearized && !done && !stuck && Self::slide_friction(sys) =>
                 {
-                    self.stick_cap(sys, x, x0, &self.dir, h, 1.0)
+                    self.stick_cap(sys, x, x0, &self.work.dir, h, 1.0)
                 }
                 _ => 1.0,
             };
@@ -1834,13 +1790,13 @@ impl Integrator {
             e_at_x = None;
             let corrections = stats.corrections;
             loop {
-                let mut trial = std::mem::take(&mut self.x_trial);
-                self.place(sys, x, &self.dir, alpha, &mut trial);
-                self.x_trial = trial;
+                let mut trial = std::mem::take(&mut self.work.x_trial);
+                self.place(sys, x, &self.work.dir, alpha, &mut trial);
+                self.work.x_trial = trial;
                 if linearized || done {
                     break;
                 }
-                let e1 = self.objective(sys, &self.x_trial, x0, mode);
+                let e1 = self.objective(sys, &self.work.x_trial, x0, mode);
                 e_at_x = Some(e1);
                 // When the predicted decrease is below a bound on the objective's floating-point
                 // resolution (≈ ε · |forces| · |positions|: terms like ½kL(l/L − 1)² are small
@@ -1861,19 +1817,19 @@ impl Integrator {
                 // tested again.
                 if alpha == 1.0 && !self.correction.is_empty() {
                     stats.correction_sweeps += self.correction.apply(
-                        &self.free_of,
+                        &self.lin.free_of,
                         &sys.mass,
                         x,
-                        &self.dir,
-                        &self.x_trial,
-                        &mut self.x_soc,
+                        &self.work.dir,
+                        &self.work.x_trial,
+                        &mut self.work.x_soc,
                     );
-                    let mut soc = std::mem::take(&mut self.x_soc);
+                    let mut soc = std::mem::take(&mut self.work.x_soc);
                     self.retract(sys, &mut soc);
-                    self.x_soc = soc;
-                    let e2 = self.objective(sys, &self.x_soc, x0, mode);
+                    self.work.x_soc = soc;
+                    let e2 = self.objective(sys, &self.work.x_soc, x0, mode);
                     if e2 <= e0 + 1e-4 * slope {
-                        std::mem::swap(&mut self.x_trial, &mut self.x_soc);
+                        std::mem::swap(&mut self.work.x_trial, &mut self.work.x_soc);
                         stats.corrections += 1;
                         e_at_x = Some(e2);
                         break;
@@ -1882,20 +1838,20 @@ impl Integrator {
                 alpha *= 0.5;
                 stats.halvings += 1;
             }
-            std::mem::swap(x, &mut self.x_trial);
+            std::mem::swap(x, &mut self.work.x_trial);
             if !sys.sliders.is_empty() {
-                let dir = std::mem::take(&mut self.dir);
+                let dir = std::mem::take(&mut self.work.dir);
                 self.predict_slide_forces(&dir, alpha);
-                self.dir = dir;
+                self.work.dir = dir;
             }
             if linearized || done {
                 stats.converged = true;
                 break;
             }
             if !self.carried.is_empty() {
-                let from = std::mem::take(&mut self.x_trial);
+                let from = std::mem::take(&mut self.work.x_trial);
                 self.carry_stress(sys, &from, x, alpha);
-                self.x_trial = from;
+                self.work.x_trial = from;
             }
             // After a shifted direction, a move along the negative curvature its inertia
             // hid (`curvature.rs`). (The rate's test below counts unshifted steps only.)
@@ -1906,7 +1862,7 @@ impl Integrator {
                 let lambda = self.negative_curvature(sys, h, last_shift);
                 stats.solve_seconds += t.elapsed().as_secs_f64();
                 if lambda < 0.0 {
-                    let base = alpha * self.step_size(&self.dir);
+                    let base = alpha * self.step_size(&self.work.dir);
                     let moved = self.curvature_search(sys, x, x0, mode, base, &mut e_at_x);
                     stats.curvature_moves += usize::from(moved);
                 }
@@ -1916,7 +1872,7 @@ impl Integrator {
             // they end the step's last iterations, the rate's test below reads the
             // contraction of Newton and this together, the iteration that is repeated.
             if let (Mode::Dynamic { h }, true) = (mode, carry && self.eliminates(sys)) {
-                let mut before = std::mem::take(&mut self.x_trial);
+                let mut before = std::mem::take(&mut self.work.x_trial);
                 before.copy_from_slice(x);
                 let moved = self.eliminate(sys, x, x0, h, alpha, scale, settings.tolerance);
                 if moved > 0 {
@@ -1926,7 +1882,7 @@ impl Integrator {
                     // as after a move along negative curvature.
                     self.carry_stress(sys, &before, x, 0.0);
                 }
-                self.x_trial = before;
+                self.work.x_trial = before;
             }
             // Or the corrections still to come, estimated from the contraction of the full
             // steps (`rate.rs`), are below the tolerance: with the first Hessians only
@@ -1969,8 +1925,8 @@ impl Integrator {
             return Err(StepError::Interrupted { iteration: 0 });
         }
         // Forces at x⁰: f = −∇E + m g − c m v.
-        let mut force = vec![Vector3::zeros(); self.n];
-        let local = &mut self.local;
+        let mut force = vec![Vector3::zeros(); self.lin.n];
+        let local = &mut self.work.local;
         sys.elements.for_each(|el| {
             el.eval(x0, false, local);
             for (a, &v) in el.vertices().iter().enumerate() {
@@ -1983,8 +1939,8 @@ impl Integrator {
         });
         let mut v = state.v.clone();
         let mut x = x0.to_vec();
-        for i in 0..self.n {
-            if self.free_of[i] == NONE {
+        for i in 0..self.lin.n {
+            if self.lin.free_of[i] == NONE {
                 x[i] = target(i);
                 v[i] = (x[i] - x0[i]) / h;
             } else {
@@ -2124,29 +2080,31 @@ mod tests {
         let h = 1.0 / 24.0;
         let mut free = Integrator::new(&sys).unwrap();
         assert!(
-            free.factor.flops() >= one_ring::SINGLE_MIN_FLOPS,
+            free.dirs.factor.flops() >= one_ring::SINGLE_MIN_FLOPS,
             "{:e}",
-            free.factor.flops()
+            free.dirs.factor.flops()
         );
         let mut s1 = state.clone();
         free.step(&sys, &mut s1, None, h, &settings).unwrap();
         let twin = free
+            .dirs
             .single
             .as_ref()
             .expect("unlimited: the twin is built")
             .bytes();
-        let limit = free.factor.bytes() + twin / 2;
+        let limit = free.dirs.factor.bytes() + twin / 2;
         // Checked each against the whole limit, H's factor and the twin would both fit.
         assert!(twin <= limit);
         // Set after building: the pattern's own check (a bound from the stencils' pairs, 47 MB
         // here) is above this small system's factors (H's 25 MB, the one-ring's 11, the twin's
         // 10), which at 317² dominate instead.
         let mut tight = Integrator::new(&sys).unwrap();
-        tight.max_bytes = Some(limit);
+        tight.hooks.max_bytes = Some(limit);
         let mut s2 = state.clone();
         tight.step(&sys, &mut s2, None, h, &settings).unwrap();
-        assert!(tight.single.is_none());
-        let used = tight.factor.bytes() + tight.one_ring.as_ref().map_or(0, |o| o.bytes());
+        assert!(tight.dirs.single.is_none());
+        let used =
+            tight.dirs.factor.bytes() + tight.dirs.one_ring.as_ref().map_or(0, |o| o.bytes());
         assert!(used <= limit, "{used} > {limit}");
     }
 
@@ -2158,7 +2116,7 @@ mod tests {
         let (sys, state) = order::tests::shell_sheet(4, 1e-3);
         let mut it = Integrator::new(&sys).unwrap();
         let h = 1.0 / 48.0;
-        it.x_hat = state.x.clone();
+        it.work.x_hat = state.x.clone();
         it.assemble_with(
             &sys,
             &state.x,
@@ -2168,7 +2126,7 @@ mod tests {
         );
         let mut stats = StepStats::default();
         assert!(it.factor(&mut stats, 0.0).is_ok());
-        it.values[0] = f64::NAN;
+        it.lin.values[0] = f64::NAN;
         let before = stats.factorizations;
         let err = it.factor(&mut stats, 0.0).unwrap_err().to_string();
         assert!(err.contains("non-finite"), "{err}");
@@ -2190,13 +2148,13 @@ mod tests {
             .collect();
         let h = 1.0 / 48.0;
         let mut it = Integrator::new(&sys).unwrap();
-        let dofs = 3 * it.n_free;
+        let dofs = 3 * it.lin.n_free;
         it.fill_budget(&sys, h, CONTACT_CURVATURE);
         for hessians in [Hessians::Projected, Hessians::First, Hessians::Contact] {
-            it.x_hat = x.clone();
+            it.work.x_hat = x.clone();
             it.assemble_with(&sys, &x, &x, Mode::Dynamic { h }, hessians);
             let mut dense = vec![0.0; dofs * dofs];
-            for (i, &f) in it.free_of.iter().enumerate() {
+            for (i, &f) in it.lin.free_of.iter().enumerate() {
                 if f != NONE {
                     for c in 0..3 {
                         let d = 3 * f as usize + c;
@@ -2216,7 +2174,7 @@ mod tests {
                 let v = e.vertices();
                 for (a, &va) in v.iter().enumerate() {
                     for (b, &vb) in v.iter().enumerate() {
-                        let (fa, fb) = (it.free_of[va as usize], it.free_of[vb as usize]);
+                        let (fa, fb) = (it.lin.free_of[va as usize], it.lin.free_of[vb as usize]);
                         if fa == NONE || fb == NONE {
                             continue;
                         }
@@ -2231,13 +2189,13 @@ mod tests {
             });
             let scale = dense.iter().fold(0.0f64, |m, v| m.max(v.abs()));
             for c in 0..dofs {
-                for p in it.col_ptr[c]..it.col_ptr[c + 1] {
-                    let r = it.row_idx[p];
-                    let v = it.values[value_index(&it.col_ptr, p, c)];
-                    let t = it.values[value_index(
-                        &it.col_ptr,
-                        it.col_ptr[r]
-                            + (it.row_idx[it.col_ptr[r]..it.col_ptr[r + 1]])
+                for p in it.lin.col_ptr[c]..it.lin.col_ptr[c + 1] {
+                    let r = it.lin.row_idx[p];
+                    let v = it.lin.values[value_index(&it.lin.col_ptr, p, c)];
+                    let t = it.lin.values[value_index(
+                        &it.lin.col_ptr,
+                        it.lin.col_ptr[r]
+                            + (it.lin.row_idx[it.lin.col_ptr[r]..it.lin.col_ptr[r + 1]])
                                 .binary_search(&c)
                                 .unwrap(),
                         r,

@@ -203,15 +203,15 @@ impl Integrator {
                 .vertices
                 .iter()
                 .zip(&c.weights)
-                .filter(|&(&v, &w)| w != 0.0 && w.is_finite() && (v as usize) < self.n)
-                .map(|(&v, _)| self.free_of[v as usize])
+                .filter(|&(&v, &w)| w != 0.0 && w.is_finite() && (v as usize) < self.lin.n)
+                .map(|(&v, _)| self.lin.free_of[v as usize])
                 .filter(|&f| f != NONE)
                 .collect();
             for (p, &a) in free.iter().enumerate() {
                 for &b in &free[p + 1..] {
                     let key = (a.min(b), a.max(b));
-                    let element = self.block_slot(a as usize, b as usize).is_some()
-                        && self.extra.binary_search(&key).is_err();
+                    let element = self.lin.block_slot(a as usize, b as usize).is_some()
+                        && self.lin.extra.binary_search(&key).is_err();
                     if !element && a != b {
                         need.push(key);
                     }
@@ -248,13 +248,13 @@ impl Integrator {
                     continue;
                 }
                 let v = v as usize;
-                if v >= self.n || !w.is_finite() {
+                if v >= self.lin.n || !w.is_finite() {
                     valid = false;
                     break;
                 }
                 a.mass += w.abs() * sys.mass[v];
-                if self.free_of[v] != NONE {
-                    a.free[a.count] = (self.free_of[v] as usize, w);
+                if self.lin.free_of[v] != NONE {
+                    a.free[a.count] = (self.lin.free_of[v] as usize, w);
                     a.floor[a.count] = (1.0 - CONTACT_CURVATURE) * sys.mass[v] / (h * h);
                     a.count += 1;
                 }
@@ -266,7 +266,7 @@ impl Integrator {
             for p in 0..a.count {
                 for q in 0..a.count {
                     a.base[p][q] = self
-                        .block_slot(a.free[p].0, a.free[q].0)
+                        .lin.block_slot(a.free[p].0, a.free[q].0)
                         .ok_or_else(|| {
                             StepError::Factorization(format!(
                                 "contact {k}: its vertices {:?} share no element, so the system has no block for them",
@@ -287,6 +287,7 @@ impl Integrator {
             for (q, &(fq, wq)) in a.free().iter().enumerate() {
                 let f = scale * wp * wq;
                 for (v, m) in self
+                    .lin
                     .block_mut(fq, a.base[p][q])
                     .iter_mut()
                     .zip(m.as_slice())
@@ -310,7 +311,7 @@ impl Integrator {
         h: f64,
         stats: &mut StepStats,
     ) -> bool {
-        let dofs = 3 * self.n_free;
+        let dofs = 3 * self.lin.n_free;
         for &k in joining {
             let a = &active[k];
             let scale = rho[k].sqrt() / h;
@@ -379,7 +380,7 @@ impl Integrator {
     ) -> Result<(StepStats, ContactStats), StepError> {
         let (contacts, max_admm) = (set.contacts, set.max_admm);
         sys.check(state)?;
-        if let Some(p) = &self.progress {
+        if let Some(p) = &self.hooks.progress {
             p.solve(contacts.len());
         }
         // First: a rebuild resets every work buffer (the prediction's among them).
@@ -446,7 +447,7 @@ impl Integrator {
             pattern_rebuilt: rebuilt,
             ..Default::default()
         };
-        let dofs = 3 * self.n_free;
+        let dofs = 3 * self.lin.n_free;
         let mut delta = vec![0.0; dofs];
         // The velocity each contact's term pulls its point towards in the last primal step.
         let mut want = vec![Vector3::zeros(); active.len()];
@@ -455,7 +456,7 @@ impl Integrator {
         let identity = Matrix3::identity();
         // The value slot of row a, column b of free vertex f's diagonal block.
         let block = |s: &Self, f: usize, a: usize, b: usize| {
-            super::block_entry(&s.col_ptr, f, s.diag_slot[f] as usize, a, b)
+            super::block_entry(&s.lin.col_ptr, f, s.lin.diag_slot[f] as usize, a, b)
         };
         // The last ADMM round's (primal, dual) residuals, for the error when it does not end.
         let mut last_admm = (f64::NAN, f64::NAN);
@@ -472,7 +473,7 @@ impl Integrator {
         let mut stuck = false;
         // The last full steps, to sum a geometric tail (`tail.rs`).
         let mut tail = Tail::default();
-        if self.tails {
+        if self.modes.tails {
             tail.reset(dofs);
         }
         for it in 0..settings.max_iterations.max(1) {
@@ -504,7 +505,7 @@ impl Integrator {
                         let mut d = 0.0;
                         for aa in 0..3 {
                             for bb in 0..3 {
-                                d += n[aa] * self.values[block(self, f, aa, bb)] * n[bb];
+                                d += n[aa] * self.lin.values[block(self, f, aa, bb)] * n[bb];
                             }
                         }
                         compliance += w * w / d.max(a.floor[j]);
@@ -562,10 +563,10 @@ impl Integrator {
                     return Err(StepError::Interrupted { iteration: it });
                 }
                 cstats.admm_iterations += 1;
-                if let Some(p) = &self.progress {
+                if let Some(p) = &self.hooks.progress {
                     p.admm();
                 }
-                for (d, g) in delta.iter_mut().zip(&self.grad) {
+                for (d, g) in delta.iter_mut().zip(&self.work.grad) {
                     *d = -g;
                 }
                 for (k, a) in active.iter().enumerate() {
@@ -627,7 +628,7 @@ impl Integrator {
                 }
                 last_admm = (primal, dual);
                 if !joining.is_empty() {
-                    let low_rank = joined_lr.u.len() + 3 * joining.len() <= self.joined_max
+                    let low_rank = joined_lr.u.len() + 3 * joining.len() <= self.modes.joined_max
                         && self.join_low_rank(
                             &mut joined_lr,
                             &active,
@@ -689,7 +690,7 @@ impl Integrator {
                 }
                 e
             };
-            let mut slope: f64 = self.grad.iter().zip(&delta).map(|(g, d)| g * d).sum();
+            let mut slope: f64 = self.work.grad.iter().zip(&delta).map(|(g, d)| g * d).sum();
             for (k, a) in active.iter().enumerate() {
                 let v = vel[k];
                 let g = rho[k] / h * (v - want[k]) + damping_force(a, v);
@@ -701,7 +702,7 @@ impl Integrator {
             let xmax = x.iter().fold(0.0f64, |m, p| m.max(p.amax()));
             // A direction of the model's converged contact problem that continues a
             // geometric series of full steps is tried at the series' sum first.
-            let (mut stretch, ratio) = if admm_converged && self.tails {
+            let (mut stretch, ratio) = if admm_converged && self.modes.tails {
                 tail.stretch(&delta)
             } else {
                 (1.0, None)
@@ -755,18 +756,18 @@ impl Integrator {
                 // for the run.
                 if alpha == 1.0 && !self.correction.is_empty() {
                     stats.correction_sweeps += self.correction.apply(
-                        &self.free_of,
+                        &self.lin.free_of,
                         &sys.mass,
                         &x,
                         &delta,
                         &trial,
-                        &mut self.x_soc,
+                        &mut self.work.x_soc,
                     );
-                    let mut soc = std::mem::take(&mut self.x_soc);
+                    let mut soc = std::mem::take(&mut self.work.x_soc);
                     self.retract(sys, &mut soc);
-                    self.x_soc = soc;
-                    if phi(self, &self.x_soc) <= e0 + 1e-4 * slope {
-                        trial.copy_from_slice(&self.x_soc);
+                    self.work.x_soc = soc;
+                    if phi(self, &self.work.x_soc) <= e0 + 1e-4 * slope {
+                        trial.copy_from_slice(&self.work.x_soc);
                         stats.corrections += 1;
                         break;
                     }
@@ -778,7 +779,7 @@ impl Integrator {
             if alpha > 1.0 {
                 stats.extrapolations += 1;
             }
-            if self.tails {
+            if self.modes.tails {
                 if admm_converged {
                     tail.taken(&delta, alpha, ratio);
                 } else {
@@ -809,7 +810,7 @@ impl Integrator {
             // stick point, `stick_cap`.)
             if step < settings.tolerance
                 && admm_converged
-                && !self.slide_forces.frictionless
+                && !self.sliders.slide_forces.frictionless
                 && !capped
             {
                 stats.converged = true;
@@ -1440,7 +1441,7 @@ mod tests {
                 p.x *= 0.8;
             }
             let mut integ = Integrator::new(&sys).unwrap();
-            integ.tails = tails;
+            integ.modes.tails = tails;
             let settings = Settings {
                 method: Method::Newton,
                 tolerance,
@@ -1556,7 +1557,7 @@ mod tests {
             v: vec![Vector3::zeros(); n],
         };
         let mut integ = Integrator::new(&sys).unwrap();
-        integ.joined_max = joined_max;
+        integ.modes.joined_max = joined_max;
         let settings = Settings {
             method: Method::Newton,
             tolerance: 1e-9,

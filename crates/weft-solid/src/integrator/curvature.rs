@@ -84,56 +84,69 @@ impl Integrator {
     /// H + κD and the factor is theirs): an upper bound on H's most negative eigenvalue
     /// relative to D, in units of mᵢ/h², with its vector in `curv_v`.
     pub(super) fn negative_curvature(&mut self, sys: &SolidSystem, h: f64, kappa: f64) -> f64 {
-        let n = self.dir.len();
-        self.curv_d.resize(n, 0.0);
-        self.curv_d.fill(0.0);
-        for (v, &f) in self.free_of.iter().enumerate() {
+        let n = self.work.dir.len();
+        self.work.curv_d.resize(n, 0.0);
+        self.work.curv_d.fill(0.0);
+        for (v, &f) in self.lin.free_of.iter().enumerate() {
             if f != NONE {
                 let f = 3 * f as usize;
-                self.curv_d[f..f + 3].fill(sys.mass[v] / (h * h));
+                self.work.curv_d[f..f + 3].fill(sys.mass[v] / (h * h));
             }
         }
-        self.curv_v.resize(n, 0.0);
-        self.curv_w.resize(n, 0.0);
+        self.work.curv_v.resize(n, 0.0);
+        self.work.curv_w.resize(n, 0.0);
         // Start: the direction and a small deterministic perturbation, each of unit D-norm.
-        let dn = weighted(&self.dir, &self.dir, &self.curv_d).sqrt();
-        for (i, w) in self.curv_w.iter_mut().enumerate() {
+        let dn = weighted(&self.work.dir, &self.work.dir, &self.work.curv_d).sqrt();
+        for (i, w) in self.work.curv_w.iter_mut().enumerate() {
             *w = jitter(i);
         }
-        let wn = weighted(&self.curv_w, &self.curv_w, &self.curv_d).sqrt();
+        let wn = weighted(&self.work.curv_w, &self.work.curv_w, &self.work.curv_d).sqrt();
         if !(dn > 0.0 && dn.is_finite() && wn > 0.0) {
             return f64::INFINITY;
         }
-        for ((v, d), w) in self.curv_v.iter_mut().zip(&self.dir).zip(&self.curv_w) {
+        for ((v, d), w) in self
+            .work
+            .curv_v
+            .iter_mut()
+            .zip(&self.work.dir)
+            .zip(&self.work.curv_w)
+        {
             *v = d / dn + PERTURBATION * w / wn;
         }
         for _ in 0..SWEEPS {
             // v ← (H + κD)⁻¹ D v with the factor at hand, then normalized in D's norm.
-            for ((w, v), d) in self.curv_w.iter_mut().zip(&self.curv_v).zip(&self.curv_d) {
+            for ((w, v), d) in self
+                .work
+                .curv_w
+                .iter_mut()
+                .zip(&self.work.curv_v)
+                .zip(&self.work.curv_d)
+            {
                 *w = d * v;
             }
-            let mut w = std::mem::take(&mut self.curv_w);
+            let mut w = std::mem::take(&mut self.work.curv_w);
             self.solve_with_last(&mut w);
-            std::mem::swap(&mut self.curv_v, &mut w);
-            self.curv_w = w;
-            let vn = weighted(&self.curv_v, &self.curv_v, &self.curv_d).sqrt();
+            std::mem::swap(&mut self.work.curv_v, &mut w);
+            self.work.curv_w = w;
+            let vn = weighted(&self.work.curv_v, &self.work.curv_v, &self.work.curv_d).sqrt();
             if !(vn > 0.0 && vn.is_finite()) {
                 return f64::INFINITY;
             }
-            self.curv_v.iter_mut().for_each(|v| *v /= vn);
+            self.work.curv_v.iter_mut().for_each(|v| *v /= vn);
         }
         // The Rayleigh quotient vᵀ(H + κD)v / vᵀDv (= 1), less the shift.
         one_ring::product(
-            &self.values,
-            &self.col_ptr,
-            &self.row_idx,
-            &self.curv_v,
-            &mut self.curv_w,
+            &self.lin.values,
+            &self.lin.col_ptr,
+            &self.lin.row_idx,
+            &self.work.curv_v,
+            &mut self.work.curv_w,
         );
         let rho: f64 = self
+            .work
             .curv_v
             .iter()
-            .zip(&self.curv_w)
+            .zip(&self.work.curv_w)
             .map(|(a, b)| a * b)
             .sum();
         if rho.is_finite() {
@@ -155,7 +168,7 @@ impl Integrator {
         base: f64,
         e_at_x: &mut Option<f64>,
     ) -> bool {
-        let vmax = self.curv_v.iter().fold(0.0f64, |m, a| m.max(a.abs()));
+        let vmax = self.work.curv_v.iter().fold(0.0f64, |m, a| m.max(a.abs()));
         if !(vmax > 0.0 && vmax.is_finite() && base > 0.0 && base.is_finite()) {
             return false;
         }
@@ -185,13 +198,13 @@ impl Integrator {
             (best_t, best_e) = (2.0 * best_t, e);
         }
         self.objective_along(sys, x, x0, mode, best_t);
-        std::mem::swap(x, &mut self.x_trial);
+        std::mem::swap(x, &mut self.work.x_trial);
         if !self.carried.is_empty() {
             // The membranes' carried stress moves by the move's linearized strain (a step
             // that took none of the Newton direction: `Membrane::predict_stress`, α = 0).
-            let from = std::mem::take(&mut self.x_trial);
+            let from = std::mem::take(&mut self.work.x_trial);
             self.carry_stress(sys, &from, x, 0.0);
-            self.x_trial = from;
+            self.work.x_trial = from;
         }
         *e_at_x = Some(best_e);
         true
@@ -206,10 +219,10 @@ impl Integrator {
         mode: Mode,
         t: f64,
     ) -> f64 {
-        let mut trial = std::mem::take(&mut self.x_trial);
-        self.place(sys, x, &self.curv_v, t, &mut trial);
+        let mut trial = std::mem::take(&mut self.work.x_trial);
+        self.place(sys, x, &self.work.curv_v, t, &mut trial);
         let e = self.objective(sys, &trial, x0, mode);
-        self.x_trial = trial;
+        self.work.x_trial = trial;
         e
     }
 }

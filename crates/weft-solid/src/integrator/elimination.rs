@@ -260,7 +260,7 @@ impl Integrator {
             && self.curvature_moves(sys)
     }
 
-    /// After a Newton step of `alpha` × `self.dir` that ended at `x` (time step `h`): local
+    /// After a Newton step of `alpha` × `self.work.dir` that ended at `x` (time step `h`): local
     /// Newton on the patches around the vertices that lag (see the module's doc). Returns the
     /// patches moved. `scale` turns a displacement into the residual the tolerance reads.
     #[allow(clippy::too_many_arguments)]
@@ -277,14 +277,14 @@ impl Integrator {
         let mut el = std::mem::take(&mut self.elimination);
         // Built once per system (an integrator serves one system; the element count is
         // checked as well as the vertex count).
-        if el.slot.len() != self.n || el.listed.len() != sys.elements.len() {
-            el.build(sys, &self.free_of);
+        if el.slot.len() != self.lin.n || el.listed.len() != sys.elements.len() {
+            el.build(sys, &self.lin.free_of);
         }
         el.steps.clear();
-        for (v, &f) in self.free_of.iter().enumerate() {
+        for (v, &f) in self.lin.free_of.iter().enumerate() {
             if f != NONE {
                 let f = 3 * f as usize;
-                let d = &self.dir[f..f + 3];
+                let d = &self.work.dir[f..f + 3];
                 let s = alpha * d[0].abs().max(d[1].abs()).max(d[2].abs());
                 el.steps.push((s, v as u32));
             }
@@ -502,15 +502,15 @@ mod tests {
         sys.gravity = nalgebra::Vector3::zeros();
         let mut it = Integrator::new(&sys).unwrap();
         let h = 1.0 / 48.0;
-        it.x_hat = state.x.clone();
+        it.work.x_hat = state.x.clone();
         let v = 3 * k + 4;
         let mut x = state.x.clone();
         x[v].z += 1e-3;
         let mode = Mode::Dynamic { h };
         let before = it.objective(&sys, &x, &state.x, mode);
-        it.dir.fill(0.0);
-        let f = 3 * it.free_of[v] as usize;
-        it.dir[f + 2] = 1e-2;
+        it.work.dir.fill(0.0);
+        let f = 3 * it.lin.free_of[v] as usize;
+        it.work.dir[f + 2] = 1e-2;
         let moved = it.eliminate(&sys, &mut x, &state.x, h, 1.0, 1.0 / h, 1e-6);
         assert_eq!(moved, 1);
         // The local loop stops once its next step is below a tenth of the tolerance's

@@ -553,7 +553,7 @@ mod tests {
             Integrator::new(&sys).unwrap(),
             Integrator::new(&sys).unwrap(),
         );
-        without.one_ring_tried = true;
+        without.dirs.one_ring_tried = true;
         let (mut a, mut b) = (state.clone(), state.clone());
         let steps = 4;
         let mut cg = 0;
@@ -564,7 +564,7 @@ mod tests {
                 .cg_iterations;
             without.step(&sys, &mut b, None, h, &settings).unwrap();
         }
-        assert!(with.one_ring.is_some() && without.one_ring.is_none());
+        assert!(with.dirs.one_ring.is_some() && without.dirs.one_ring.is_none());
         assert!(cg > 0, "no CG iterations");
         let far = crate::integrator::order::tests::farthest(&a, &b);
         assert!(far < 1e-6 * h * steps as f64, "{far:e} m apart");

@@ -296,9 +296,9 @@ pub(super) mod tests {
         let plain = Integrator::new(&sys).unwrap();
         sys.layout = state.x.clone();
         let cut = Integrator::new(&sys).unwrap();
-        let flops = |i: &Integrator| supernodal_flops(i.factor.analysis.symbolic.raw());
+        let flops = |i: &Integrator| supernodal_flops(i.dirs.factor.analysis.symbolic.raw());
         assert!(
-            plain.factor.analysis.fwd != cut.factor.analysis.fwd,
+            plain.dirs.factor.analysis.fwd != cut.dirs.factor.analysis.fwd,
             "the layout changed nothing"
         );
         assert!(
@@ -309,7 +309,8 @@ pub(super) mod tests {
         );
         assert!(flops(&plain) >= DISSECTION_MIN_FLOPS);
         // The last unknowns are the top separator: vertices of one straight band.
-        let last: Vec<usize> = cut.factor.analysis.fwd[cut.factor.analysis.fwd.len() - 3 * k..]
+        let last: Vec<usize> = cut.dirs.factor.analysis.fwd
+            [cut.dirs.factor.analysis.fwd.len() - 3 * k..]
             .iter()
             .step_by(3)
             .map(|&d| d / 3)

@@ -156,11 +156,16 @@ impl Groups {
 impl Integrator {
     /// Adds `b` to block (row node `r`, column node `c`) (in the pattern by construction).
     pub(super) fn add_block(&mut self, r: u32, c: u32, b: &Matrix3<f64>) {
-        let Some(s) = self.block_slot(r as usize, c as usize) else {
+        let Some(s) = self.lin.block_slot(r as usize, c as usize) else {
             debug_assert!(false, "block ({r}, {c}) is not in the pattern");
             return;
         };
-        for (v, b) in self.block_mut(c as usize, s).iter_mut().zip(b.as_slice()) {
+        for (v, b) in self
+            .lin
+            .block_mut(c as usize, s)
+            .iter_mut()
+            .zip(b.as_slice())
+        {
             *v += b;
         }
     }
@@ -168,12 +173,12 @@ impl Integrator {
     /// Adds a vertex's gradient `g` and Hessian block `h` (both from per-vertex terms:
     /// inertia, damping, drag) for member `v` through its group's Jacobian.
     pub(super) fn add_member_terms(&mut self, v: usize, g: &Vector3<f64>, h: &Matrix3<f64>) {
-        let (nodes, k) = self.groups.nodes_of(&self.free_of, v);
+        let (nodes, k) = self.groups.nodes_of(&self.lin.free_of, v);
         self.groups.grad_at[v] += g;
         for &(na, ja) in &nodes[..k] {
             let gj = ja.transpose() * g;
             for c in 0..3 {
-                self.grad[3 * na as usize + c] += gj[c];
+                self.work.grad[3 * na as usize + c] += gj[c];
             }
             for &(nb, jb) in &nodes[..k] {
                 let b = ja.transpose() * h * jb;
@@ -189,7 +194,7 @@ impl Integrator {
         // J = −S (S = [q]×) for a group's rotation node, so Jᵀ = S there.
         let mut nodes = [([(NONE, None::<Matrix3<f64>>); 2], 0usize); MAX_STENCIL];
         for (a, &va) in verts.iter().enumerate() {
-            let (list, k) = self.groups.nodes_of(&self.free_of, va as usize);
+            let (list, k) = self.groups.nodes_of(&self.lin.free_of, va as usize);
             nodes[a].1 = k;
             for (slot, &(n, j)) in nodes[a].0.iter_mut().zip(&list[..k]) {
                 // nodes_of gives −S for a rotation node, the identity otherwise.
@@ -209,7 +214,7 @@ impl Integrator {
             for &(na, sa) in &na_list[..ka] {
                 let gj = sa.map_or(ga, |s| s * ga);
                 for c in 0..3 {
-                    self.grad[3 * na as usize + c] += gj[c];
+                    self.work.grad[3 * na as usize + c] += gj[c];
                 }
                 for (b, &(nb_list, kb)) in nodes[..verts.len()].iter().enumerate() {
                     if kb == 0 {
@@ -264,10 +269,10 @@ impl Integrator {
                 project_psd(&mut m);
             }
             let r = self.groups.node[g] + 1;
-            let Some(s) = self.block_slot(r as usize, r as usize) else {
+            let Some(s) = self.lin.block_slot(r as usize, r as usize) else {
                 continue;
             };
-            let block = self.block_mut(r as usize, s);
+            let block = self.lin.block_mut(r as usize, s);
             let diag = [0, 4, 8]
                 .map(|k| block[k].abs())
                 .into_iter()

@@ -96,7 +96,7 @@ impl Integrator {
         x: &[Vector3<f64>],
         v: usize,
     ) -> Option<(usize, Vector3<f64>)> {
-        let f = self.free_of[v];
+        let f = self.lin.free_of[v];
         if f != NONE {
             return Some((f as usize, x[v]));
         }
@@ -113,7 +113,7 @@ impl Integrator {
     /// The mass that slider vertex `v`'s node moves: the vertex's, or its rigid group's.
     fn node_mass(&self, sys: &SolidSystem, v: usize) -> f64 {
         match self.groups.of.get(v).copied() {
-            Some(g) if self.free_of[v] == NONE && g != NONE => self.groups.members[g as usize]
+            Some(g) if self.lin.free_of[v] == NONE && g != NONE => self.groups.members[g as usize]
                 .iter()
                 .map(|&u| sys.mass[u as usize])
                 .sum(),
@@ -125,14 +125,14 @@ impl Integrator {
     /// sliders may change between calls).
     fn map_sliders(&mut self, sys: &SolidSystem, x: &[Vector3<f64>]) {
         let k = sys.sliders.len();
-        self.slide_of.clear();
-        self.slide_of.resize(self.n_free, NONE);
-        self.slide_proj.resize(k, Matrix3::zeros());
-        self.slide_scale.resize(k, 0.0);
-        self.slide_normal.resize(k, 0.0);
+        self.sliders.slide_of.clear();
+        self.sliders.slide_of.resize(self.lin.n_free, NONE);
+        self.sliders.slide_proj.resize(k, Matrix3::zeros());
+        self.sliders.slide_scale.resize(k, 0.0);
+        self.sliders.slide_normal.resize(k, 0.0);
         for (k, sl) in sys.sliders.iter().enumerate() {
             if let Some((f, _)) = self.slider_node(sys, x, sl.vertex as usize) {
-                self.slide_of[f] = k as u32;
+                self.sliders.slide_of[f] = k as u32;
             }
         }
     }
@@ -143,7 +143,7 @@ impl Integrator {
         for sl in &sys.sliders {
             let v = sl.vertex as usize;
             let group = self.groups.of.get(v).copied().unwrap_or(NONE);
-            if self.free_of[v] == NONE && group != NONE {
+            if self.lin.free_of[v] == NONE && group != NONE {
                 let members = &self.groups.members[group as usize];
                 let c = centroid(sys, members, x);
                 if let Some(p) = place(&sys.rails, &sys.surfaces, sl.on, &c) {
@@ -164,7 +164,7 @@ impl Integrator {
     /// Starts a step with no predicted target force (`SlideForces`: nothing carried);
     /// `iterated`: the step runs Newton to its tolerance (not one linearized iteration).
     pub(super) fn start_slide_forces(&mut self, sys: &SolidSystem, iterated: bool) {
-        let sf = &mut self.slide_forces;
+        let sf = &mut self.sliders.slide_forces;
         sf.free_first = iterated;
         sf.frictionless = false;
         sf.predicted.clear();
@@ -179,14 +179,14 @@ impl Integrator {
     /// on each slider's node, with the gradient and the matrix kept at the assembly `dir`
     /// was solved from (`SlideForces`), each sliding node's part of `dir` along its target.
     pub(super) fn predict_slide_forces(&mut self, dir: &[f64], alpha: f64) {
-        let sf = &mut self.slide_forces;
+        let sf = &mut self.sliders.slide_forces;
         sf.used.clear();
         if sf.frictionless {
             // An iteration that left friction out is no term of the fixed-point iteration on
             // the normal forces: the next change is measured from none.
-            sf.used.resize(self.slide_normal.len(), f64::NAN);
+            sf.used.resize(self.sliders.slide_normal.len(), f64::NAN);
         } else {
-            sf.used.extend_from_slice(&self.slide_normal);
+            sf.used.extend_from_slice(&self.sliders.slide_normal);
         }
         for (k, &f) in sf.node.iter().enumerate() {
             if f == NONE {
@@ -198,9 +198,9 @@ impl Integrator {
             for (a, b) in &sf.column[sf.start[k]..sf.start[k + 1]] {
                 let a = *a as usize;
                 let mut d = Vector3::new(dir[3 * a], dir[3 * a + 1], dir[3 * a + 2]);
-                let slider = self.slide_of[a];
+                let slider = self.sliders.slide_of[a];
                 if slider != NONE {
-                    d = self.slide_proj[slider as usize] * d;
+                    d = self.sliders.slide_proj[slider as usize] * d;
                 }
                 g += alpha * b.tr_mul(&d);
             }
@@ -211,15 +211,15 @@ impl Integrator {
     /// Keeps slider `k`'s node `f`, its gradient and its column of the matrix, before the
     /// filter and friction change them (`SlideForces`).
     fn keep_column(&mut self, k: usize, f: usize, g: Vector3<f64>) {
-        let sf = &mut self.slide_forces;
+        let sf = &mut self.sliders.slide_forces;
         sf.node[k] = f as u32;
         sf.grad[k] = g;
-        let start = self.col_ptr[3 * f];
-        let slots = (self.col_ptr[3 * f + 1] - start) / 3;
+        let start = self.lin.col_ptr[3 * f];
+        let slots = (self.lin.col_ptr[3 * f + 1] - start) / 3;
         for s in 0..slots {
-            let a = self.row_idx[start + 3 * s] / 3;
-            let at = block_entry(&self.col_ptr, f, s, 0, 0);
-            let b = Matrix3::from_column_slice(&self.values[at..at + 9]);
+            let a = self.lin.row_idx[start + 3 * s] / 3;
+            let at = block_entry(&self.lin.col_ptr, f, s, 0, 0);
+            let b = Matrix3::from_column_slice(&self.lin.values[at..at + 9]);
             sf.column.push((a as u32, b));
         }
         sf.start[k + 1] = sf.column.len();
@@ -248,7 +248,7 @@ impl Integrator {
         if !Self::slide_friction(sys) {
             return Some(settings.tolerance);
         }
-        let change = self.slide_forces.change;
+        let change = self.sliders.slide_forces.change;
         let tail = friction_rate.done(change, full, settings.tolerance);
         // No change at all (every frictional slider held at a stop, or its force unchanged):
         // nothing lags, though the ratio of two zeros is no contraction.
@@ -283,7 +283,7 @@ impl Integrator {
         let eps = FRICTION_EPS_V * h;
         let mut cap = max;
         for (k, sl) in sys.sliders.iter().enumerate() {
-            let n = self.slide_normal.get(k).copied().unwrap_or(0.0);
+            let n = self.sliders.slide_normal.get(k).copied().unwrap_or(0.0);
             if sl.friction <= 0.0 || n.is_nan() || n <= 0.0 {
                 continue;
             }
@@ -293,7 +293,7 @@ impl Integrator {
             else {
                 continue;
             };
-            let p = self.slide_proj[k];
+            let p = self.sliders.slide_proj[k];
             let u = p * (at - at0);
             let d = p * Vector3::new(dir[3 * f], dir[3 * f + 1], dir[3 * f + 2]);
             let dd = d.norm_squared();
@@ -325,7 +325,7 @@ impl Integrator {
     ) -> f64 {
         let mut e = 0.0;
         for (k, sl) in sys.sliders.iter().enumerate() {
-            let n = self.slide_normal.get(k).copied().unwrap_or(0.0);
+            let n = self.sliders.slide_normal.get(k).copied().unwrap_or(0.0);
             if sl.friction > 0.0 && n > 0.0 {
                 let v = sl.vertex as usize;
                 let (Some((_, p)), Some((_, p0))) =
@@ -333,7 +333,7 @@ impl Integrator {
                 else {
                     continue;
                 };
-                let u = self.slide_proj[k] * (p - p0);
+                let u = self.sliders.slide_proj[k] * (p - p0);
                 e += sl.friction * n * friction_f0_f1(u.norm(), FRICTION_EPS_V * h).0;
             }
         }
@@ -360,7 +360,7 @@ impl Integrator {
         }
         self.map_sliders(sys, x);
         let n_sliders = sys.sliders.len();
-        let sf = &mut self.slide_forces;
+        let sf = &mut self.sliders.slide_forces;
         sf.frictionless = false;
         sf.change = 0.0;
         sf.used.resize(n_sliders, f64::NAN);
@@ -374,31 +374,35 @@ impl Integrator {
         let dynamic = matches!(mode, Mode::Dynamic { .. });
         for (k, sl) in sys.sliders.iter().enumerate() {
             let v = sl.vertex as usize;
-            let from = self.slide_forces.column.len();
-            self.slide_forces.start[k + 1] = from;
+            let from = self.sliders.slide_forces.column.len();
+            self.sliders.slide_forces.start[k + 1] = from;
             let Some((f, at)) = self.slider_node(sys, x, v) else {
                 continue;
             };
-            let g = Vector3::new(self.grad[3 * f], self.grad[3 * f + 1], self.grad[3 * f + 2]);
+            let g = Vector3::new(
+                self.work.grad[3 * f],
+                self.work.grad[3 * f + 1],
+                self.work.grad[3 * f + 2],
+            );
             if dynamic && sl.friction > 0.0 {
                 self.keep_column(k, f, g);
             }
             // The force on the node (the model's where it has one): whether it pushes past a
             // stop is the sign of the constraint's multiplier.
-            let force = self.slide_forces.predicted[k].unwrap_or(g);
+            let force = self.sliders.slide_forces.predicted[k].unwrap_or(g);
             let p = match place(&sys.rails, &sys.surfaces, sl.on, &at) {
                 Some(pl) => projector(&pl, &force),
                 None => Matrix3::zeros(),
             };
-            self.slide_proj[k] = p;
-            self.slide_scale[k] = (0..3)
-                .map(|c| self.values[self.diagonal_entry(f, c)])
+            self.sliders.slide_proj[k] = p;
+            self.sliders.slide_scale[k] = (0..3)
+                .map(|c| self.lin.values[self.lin.diagonal_entry(f, c)])
                 .sum::<f64>()
                 / 3.0;
             // The normal force the target supplies: the part of the (predicted) gradient it
             // takes. Held at a stop (P = 0), the vertex does not slide: no friction.
             let held = p == Matrix3::zeros();
-            let predicted = self.slide_forces.predicted[k];
+            let predicted = self.sliders.slide_forces.predicted[k];
             // With no prediction yet (a step's first iteration), the gradient, unless the
             // node is stiffly held by its neighbours: then its normal part is mostly their
             // imbalance at the first guess (a swinging strand's root: 1.84 N where the strand
@@ -406,15 +410,18 @@ impl Integrator {
             // friction.
             let stiff = |s: &Self| match mode {
                 Mode::Dynamic { h } => {
-                    s.slide_scale[k] > STIFF_NODE * s.node_mass(sys, v) / (h * h)
+                    s.sliders.slide_scale[k] > STIFF_NODE * s.node_mass(sys, v) / (h * h)
                 }
                 Mode::Static => false,
             };
-            self.slide_normal[k] = match predicted {
+            self.sliders.slide_normal[k] = match predicted {
                 _ if held => 0.0,
                 Some(f) => (f - p * f).norm(),
-                None if sl.friction > 0.0 && self.slide_forces.free_first && stiff(self) => {
-                    self.slide_forces.frictionless = true;
+                None if sl.friction > 0.0
+                    && self.sliders.slide_forces.free_first
+                    && stiff(self) =>
+                {
+                    self.sliders.slide_forces.frictionless = true;
                     0.0
                 }
                 None => (g - p * g).norm(),
@@ -422,9 +429,11 @@ impl Integrator {
             // Friction's change from the last iteration's normal force, held sliders included
             // (their friction switching off is a change too).
             if let (Mode::Dynamic { h }, true) = (mode, sl.friction > 0.0) {
-                let d = sl.friction * (self.slide_normal[k] - self.slide_forces.used[k]).abs() * h
+                let d = sl.friction
+                    * (self.sliders.slide_normal[k] - self.sliders.slide_forces.used[k]).abs()
+                    * h
                     / self.node_mass(sys, v);
-                let c = &mut self.slide_forces.change;
+                let c = &mut self.sliders.slide_forces.change;
                 *c = if d.is_nan() || c.is_nan() {
                     f64::NAN
                 } else {
@@ -436,7 +445,7 @@ impl Integrator {
             };
             // μ N f₀(|u|), u = P (x − x⁰): gradient μN f₁/y u; Hessian
             // μN [f₁/y (P − û ûᵀ) + f₁′ û ûᵀ], both terms PSD (f₁′ = 0 beyond ε).
-            let mu_n = sl.friction * self.slide_normal[k];
+            let mu_n = sl.friction * self.sliders.slide_normal[k];
             let eps = FRICTION_EPS_V * h;
             let at0 = self.slider_node(sys, x0, v).map_or(at, |(_, q)| q);
             let u = p * (at - at0);
@@ -455,28 +464,28 @@ impl Integrator {
                 (f1 / y * u, f1 / y * (p - uu) + df1 * uu)
             };
             for c in 0..3 {
-                self.grad[3 * f + c] += mu_n * grad[c];
+                self.work.grad[3 * f + c] += mu_n * grad[c];
             }
-            let block = self.block_mut(f, self.diag_slot[f] as usize);
+            let block = self.lin.block_mut(f, self.lin.diag_slot[f] as usize);
             for (v, h) in block.iter_mut().zip(hess.as_slice()) {
                 *v += mu_n * h;
             }
         }
         let proj = |s: &Self, f: usize| {
-            let k = s.slide_of[f];
-            (k != NONE).then(|| s.slide_proj[k as usize])
+            let k = s.sliders.slide_of[f];
+            (k != NONE).then(|| s.sliders.slide_proj[k as usize])
         };
-        for fb in 0..self.n_free {
+        for fb in 0..self.lin.n_free {
             let pb = proj(self, fb);
-            let start = self.col_ptr[3 * fb];
-            let slots = (self.col_ptr[3 * fb + 1] - start) / 3;
+            let start = self.lin.col_ptr[3 * fb];
+            let slots = (self.lin.col_ptr[3 * fb + 1] - start) / 3;
             for s in 0..slots {
-                let fa = self.row_idx[start + 3 * s] / 3;
+                let fa = self.lin.row_idx[start + 3 * s] / 3;
                 let pa = proj(self, fa);
                 if pa.is_none() && pb.is_none() {
                     continue;
                 }
-                let block = self.block_mut(fb, s);
+                let block = self.lin.block_mut(fb, s);
                 let mut b = Matrix3::from_column_slice(block);
                 if let Some(pa) = pa {
                     b = pa * b;
@@ -491,13 +500,17 @@ impl Integrator {
             let Some((f, _)) = self.slider_node(sys, x, sl.vertex as usize) else {
                 continue;
             };
-            let p = self.slide_proj[k];
-            let g = p * Vector3::new(self.grad[3 * f], self.grad[3 * f + 1], self.grad[3 * f + 2]);
-            let normal = self.slide_scale[k] * (Matrix3::identity() - p);
+            let p = self.sliders.slide_proj[k];
+            let g = p * Vector3::new(
+                self.work.grad[3 * f],
+                self.work.grad[3 * f + 1],
+                self.work.grad[3 * f + 2],
+            );
+            let normal = self.sliders.slide_scale[k] * (Matrix3::identity() - p);
             for c in 0..3 {
-                self.grad[3 * f + c] = g[c];
+                self.work.grad[3 * f + c] = g[c];
             }
-            let block = self.block_mut(f, self.diag_slot[f] as usize);
+            let block = self.lin.block_mut(f, self.lin.diag_slot[f] as usize);
             for (v, n) in block.iter_mut().zip(normal.as_slice()) {
                 *v += n;
             }
@@ -796,8 +809,8 @@ mod tests {
         let x = vec![x0[0] + u0, x0[1] + u1, x0[2] + u1];
         let h = 0.01;
         let mut integ = Integrator::new(&sys).unwrap();
-        integ.slide_normal = vec![1.0, 1.0];
-        integ.slide_proj = vec![
+        integ.sliders.slide_normal = vec![1.0, 1.0];
+        integ.sliders.slide_proj = vec![
             Matrix3::identity() - Vector3::z() * Vector3::z().transpose(),
             Vector3::x() * Vector3::x().transpose(),
         ];
@@ -806,7 +819,7 @@ mod tests {
         assert!((c - u1).norm() < 1e-15, "the ring's centroid slides: {c:?}");
         // The floor's slider back through its stick point at α = 0.4 (its normal part is
         // projected out), the ring's at α = `ring`.
-        let n = integ.dir.len();
+        let n = integ.work.dir.len();
         let dir = |ring: f64, miss: f64| {
             let mut d = vec![0.0; n];
             let d0 = -u0 / 0.4 + Vector3::new(0.0, miss, 5.0);
@@ -836,7 +849,7 @@ mod tests {
         assert!(close(cap(&integ, &sys, &dir(0.7, -2e-6), 1.0), 0.7));
         // A slider not pressed on its target (no normal force) has no friction to stop at;
         // nor one without friction.
-        integ.slide_normal = vec![0.0, 1.0];
+        integ.sliders.slide_normal = vec![0.0, 1.0];
         assert!(close(cap(&integ, &sys, &dir(0.7, 0.0), 1.0), 0.7));
         sys.sliders[1].friction = 0.0;
         assert!(close(cap(&integ, &sys, &dir(0.7, 0.0), 1.0), 1.0));

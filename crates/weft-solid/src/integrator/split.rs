@@ -23,7 +23,8 @@
 //! the thread count), so the results are the same bits at any thread count; with one thread
 //! the halves run one after the other.
 
-use super::{Analysis, StepError, solve};
+use super::analysis::Analysis;
+use super::{StepError, solve};
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::{LltRegularization, cholesky_in_place};
 use faer::linalg::matmul::matmul;
@@ -212,7 +213,7 @@ impl Half {
             let llt = SupernodalLltRef::new(sn, &single.l_values);
             let x = MatMut::from_column_major_slice_mut(&mut single.x, n, 1);
             let stack = MemStack::new(&mut self.mem);
-            super::factor::flushing(|| {
+            super::analysis::flushing(|| {
                 if transposed {
                     llt.l_transpose_solve_with_conj(Conj::No, x, Par::Seq, stack);
                 } else {
@@ -735,7 +736,7 @@ pub(super) mod tests {
         sys.layout = state.x.clone();
         let mut split = Integrator::new(&sys).unwrap();
         let mut whole = Integrator::new_whole(&sys).unwrap();
-        assert!(split.factor.split.is_some() && whole.factor.split.is_none());
+        assert!(split.dirs.factor.split.is_some() && whole.dirs.factor.split.is_none());
         let settings = Settings::default();
         let h = 1.0 / 48.0;
         let (mut a, mut b) = (state.clone(), state.clone());
