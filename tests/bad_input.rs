@@ -1,5 +1,7 @@
 //! Malformed graph files: each problem is a clear error naming the node, the port or parameter
-//! and the line; all problems of a file are reported at once; nothing panics.
+//! and the line; all problems of a file are reported at once; nothing panics. And the
+//! examples with a contact band too wide for their elements: refused before a step, or
+//! reported with their numbers.
 
 mod common;
 use common::*;
@@ -217,4 +219,87 @@ proptest! {
             }
         }
     }
+}
+
+/// The header every graph file starts with.
+const H: &str = r#""format": "weft-graph", "version": 1"#;
+
+#[test]
+fn long_non_ascii_parameter_values_do_not_panic() {
+    let s = format!("a{}", "é".repeat(80));
+    let e = load_error(&format!(
+        r#"{{{H}, "nodes": {{"c": {{"type": "value.float", "params": {{"value": "{s}"}}}}}}, "outputs": {{"y": "c.out"}}}}"#
+    ));
+    assert!(
+        e.contains("expected a number, got \"aééé") && e.contains("…"),
+        "{e}"
+    );
+}
+
+/// The first pull of the drape example with `thickness` [m] on both Collider SECs (a metre,
+/// or worse, where a millimetre was meant): its error, or its warnings.
+fn drape_with_thickness(thickness: f64) -> Result<Vec<String>, String> {
+    let mut g = example("cloth_drape.json");
+    for node in ["contact", "ballsec"] {
+        g.set_param(node, "thickness", serde_json::json!(thickness))
+            .unwrap();
+    }
+    g.pull("center", weft_graph::Context::new(0))
+        .map_err(|e| e.to_string())?;
+    Ok(g.take_warnings().into_iter().map(|w| w.message).collect())
+}
+
+/// A contact band wider than its own element cannot describe the scene: refused before a
+/// step, naming the element, the parameter and both sizes (issue 70: 1 m in cloth_drape ran
+/// frame 1 for two minutes, every vertex in contact with every triangle of the ball).
+#[test]
+fn a_thickness_wider_than_its_element_is_refused_with_both_sizes() {
+    for (t, shown) in [(1.0, "1 m"), (1e9, "1e9 m")] {
+        let e = drape_with_thickness(t).unwrap_err();
+        assert!(
+            e.contains(&format!("element 'cloth': collider.thickness is {shown}, wider than the element itself (its bounding box's largest side is 0.8 m)")),
+            "{e}"
+        );
+    }
+}
+
+/// A band that holds most of a member at the start, narrower than the elements: the run
+/// goes on, and says at once how many vertices start how deep in it, what the first step
+/// does about it, and how many contacts that makes.
+#[test]
+fn a_start_inside_a_wide_band_is_reported_with_its_numbers() {
+    let w = drape_with_thickness(0.2).unwrap().join("\n");
+    // The sphere's top is 0.05 m below the cloth and the band 0.4 m: all 576 vertices are
+    // in it, the centre 0.35 m deep (0.4 − 0.05, to the sphere's facets' rounding).
+    assert!(
+        w.contains("'cloth': 576 of its 576 free vertices start inside the 0.4 m contact band of collider 'ball' (up to 0.3485 m deep): the first step pushes them out by 0.1742 m at most (collision_response.strength 0.5 of their depth each step); about "),
+        "{w}"
+    );
+    assert!(w.contains("contacts in the first step"), "{w}");
+    // The example's own millimetre: nothing to say.
+    let w = drape_with_thickness(1e-3).unwrap();
+    assert!(!w.iter().any(|m| m.contains("contact band")), "{w:?}");
+}
+
+/// A self-collision band wider than the sheet's own spacing holds every vertex at rest
+/// (triangles one edge away are inside it), which no motion can undo: refused, with the
+/// spacing and the thickness that would fit.
+#[test]
+fn a_self_collision_band_wider_than_the_mesh_spacing_is_refused() {
+    let mut g = example("cloth_pile.json");
+    for node in ["lower_contact", "middle_contact", "upper_contact"] {
+        g.set_param(node, "thickness", serde_json::json!(0.1))
+            .unwrap();
+    }
+    let e = g
+        .pull("upper_center", weft_graph::Context::new(0))
+        .unwrap_err()
+        .to_string();
+    // 12 × 12 vertices over 0.5 m: edges of 0.0455 m, the nearest triangle that does not
+    // hold a vertex 0.0455/√2 = 0.0321 m from it.
+    assert!(
+        e.contains("element 'lower': collider.thickness gives a self-collision band of 0.2 m (both sides' thickness), but 144 of its 144 free vertices start within that of its own other primitives (the nearest 0.0321 m away)"),
+        "{e}"
+    );
+    assert!(e.contains("smaller than 0.0161 m"), "{e}");
 }

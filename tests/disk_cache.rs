@@ -124,3 +124,28 @@ fn an_unwritable_cache_directory_is_a_clear_error() {
         "{e}"
     );
 }
+
+/// The header every graph file starts with.
+const H: &str = r#""format": "weft-graph", "version": 1"#;
+
+#[test]
+fn a_disk_cache_notices_an_edit_inside_a_nested_subgraph() {
+    let dir = tempfile::tempdir().unwrap();
+    let mk = |from: &str| {
+        format!(
+            r#"{{{H}, "subgraphs": {{
+            "B": {{"inputs": {{"x": "float"}},
+                   "nodes": {{"s": {{"type": "math.scale", "params": {{"factor": 2.0}}, "inputs": {{"x": "in.x"}}}},
+                              "t": {{"type": "math.scale", "params": {{"factor": 3.0}}, "inputs": {{"x": "in.x"}}}}}},
+                   "outputs": {{"y": "{from}"}}}},
+            "A": {{"inputs": {{"x": "float"}}, "nodes": {{"b": {{"type": "B", "inputs": {{"x": "in.x"}}}}}}, "outputs": {{"y": "b.y"}}}}}},
+          "nodes": {{"c": {{"type": "value.float", "params": {{"value": 1.0}}}},
+                     "a": {{"type": "A", "inputs": {{"x": "c.out"}}}},
+                     "k": {{"type": "cache.disk", "params": {{"path": {:?}}}, "inputs": {{"in": "a.y"}}}}}},
+          "outputs": {{"y": "k.out"}}}}"#,
+            dir.path().to_str().unwrap()
+        )
+    };
+    assert_eq!(f64_at(&mut graph(&mk("s.out")), "y", 0), 2.0);
+    assert_eq!(f64_at(&mut graph(&mk("t.out")), "y", 0), 3.0);
+}

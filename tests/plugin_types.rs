@@ -132,3 +132,56 @@ fn plugin_types_load_run_type_check_and_cache() {
         "{e}"
     );
 }
+
+/// The header every graph file starts with.
+const H: &str = r#""format": "weft-graph", "version": 1"#;
+
+#[test]
+fn a_parameter_that_types_an_output_cannot_change_after_load() {
+    let mut reg = Registry::new();
+    weft::nodes::register_all(&mut reg).unwrap();
+    reg.register(
+        NodeSpec::new("parse", "JSON to a value of the named type")
+            .output("out", "param:type", "value")
+            .param(ParamSpec::string("type", "float").doc("port type"))
+            .param(ParamSpec::json("value", serde_json::json!(1.0)).doc("the value")),
+        |_| {
+            Ok(Kernel::from_fn(|cx| {
+                let t = cx.params().str("type")?.to_string();
+                let j = cx.params().get("value").cloned().unwrap_or_default();
+                let f = cx
+                    .registry()
+                    .port_type(&t)
+                    .and_then(|p| p.from_json)
+                    .expect("checked at load");
+                let v: Value = f(&j).map_err(weft::graph::NodeError::Failed)?;
+                cx.set("out", v);
+                Ok(())
+            }))
+        },
+    )
+    .unwrap();
+    let reg = std::sync::Arc::new(reg);
+    let text = format!(
+        r#"{{{H}, "nodes": {{"p": {{"type": "parse"}}, "s": {{"type": "math.scale", "inputs": {{"x": "p.out"}}}}}}, "outputs": {{"y": "s.out"}}}}"#
+    );
+    let mut g = load_str(&reg, &text, "t").unwrap();
+    assert_eq!(
+        g.pull("y", Context::new(0)).unwrap().get::<f64>(),
+        Some(&1.0)
+    );
+    let e = g
+        .set_param("p", "type", serde_json::json!("bool"))
+        .unwrap_err();
+    assert!(
+        e.describe()
+            .starts_with("node 'p': param 'type': sets an output's type"),
+        "{}",
+        e.describe()
+    );
+    g.set_param("p", "value", serde_json::json!(4.0)).unwrap();
+    assert_eq!(
+        g.pull("y", Context::new(0)).unwrap().get::<f64>(),
+        Some(&4.0)
+    );
+}

@@ -54,10 +54,10 @@ fn run(scene: Vec<SceneElement>, frames: i64) -> Result<Measured, String> {
         state = next;
         steps += s.steps;
         its += s.newton_iterations;
-        asm += s.assembly_seconds;
-        fac += s.factor_seconds;
-        sol += s.solve_seconds;
-        cg += s.cg_iterations;
+        asm += s.linear.assembly_seconds;
+        fac += s.linear.factor_seconds;
+        sol += s.linear.solve_seconds;
+        cg += s.linear.cg_iterations;
     }
     let total = t.elapsed().as_secs_f64();
     Ok(Measured {

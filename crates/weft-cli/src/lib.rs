@@ -14,9 +14,9 @@ mod ticker;
 /// address space on a thread's first allocation, which counts against `ulimit -v` without
 /// being allocated, and the worker threads start after the memory estimates measured the
 /// room left (`weft_graph::memory`). Weft's threads do not allocate in their loops, so they
-/// do not contend for it: measured (whole runs, median of 5, A/B against glibc's default)
-/// cloth_hang 0.96, hair_on_head 1.06, flag_wind 1.10 of the default's wall time. Elsewhere
-/// a no-op.
+/// do not contend for it: whole runs of the examples take about the default's wall time
+/// (paired runs against glibc's default measure it; figures in
+/// docs/history/issue-71-comments.md). Elsewhere a no-op.
 pub fn cap_malloc_arenas() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     // SAFETY: mallopt only changes a glibc tunable; it is called before this process's

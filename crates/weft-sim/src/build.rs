@@ -257,6 +257,45 @@ pub fn compile_within(
     tree: &BehaviorTree,
     max_bytes: Option<u64>,
 ) -> Result<Compiled, SimError> {
+    check_size(scene, max_bytes)?;
+    let (ranges, x, v) = gather_vertices(scene)?;
+    let (mut b, v) = start_builder(scene, ranges, x, v)?;
+    let n = b.x.len();
+    apply_tree(scene, tree, &mut b)?;
+    check_masses(scene, &b)?;
+    check_bands(scene, &mut b)?;
+    let fluid = crate::fluid::fluid_spec(scene, &b.x, max_bytes, |e, sec| {
+        if let Some(r) = b.read.get_mut(e) {
+            r.insert(sec);
+        }
+    })?;
+    warn_fluid(fluid.as_ref(), &mut b);
+    warn_unread(scene, &mut b);
+    let terms = term_counts(&b, n);
+    let base_sliders = b.system.sliders.len();
+    b.system.layout = b.x.clone();
+    Ok(Compiled {
+        state: State { x: b.x, v },
+        system: b.system,
+        ranges: b.ranges,
+        pins: b.pins,
+        clamps: b.clamps,
+        targets: b.targets,
+        freezes: b.freezes,
+        base_sliders,
+        warnings: b.warnings,
+        terms,
+        drag_elements: b.drag_elements,
+        fluid,
+        collisions: b.collisions,
+        source: std::sync::Arc::new(scene.to_vec()),
+        tree: tree.clone(),
+    })
+}
+
+/// Refuses a scene whose simulated vertices would take more than `max_bytes` in the system
+/// ([`SYSTEM_BYTES_PER_VERTEX`] each), before anything is built.
+fn check_size(scene: &[SceneElement], max_bytes: Option<u64>) -> Result<(), SimError> {
     if let Some(limit) = max_bytes {
         let n: u64 = scene
             .iter()
@@ -273,6 +312,21 @@ pub fn compile_within(
             )));
         }
     }
+    Ok(())
+}
+
+/// Per scene element, its range of global vertices; every global vertex's start position
+/// and velocity.
+type Vertices = (
+    Vec<Option<Range<usize>>>,
+    Vec<Vector3<f64>>,
+    Vec<Vector3<f64>>,
+);
+
+/// The global vertices of the scene's cloth and hair elements, in scene order, with their
+/// start velocities (the `velocity` channel, or zero). Element names must be unique and
+/// positions finite.
+fn gather_vertices(scene: &[SceneElement]) -> Result<Vertices, SimError> {
     let mut names = BTreeSet::new();
     let mut ranges = Vec::with_capacity(scene.len());
     let mut x = Vec::new();
@@ -304,7 +358,19 @@ pub fn compile_within(
         }
         ranges.push(Some(start..x.len()));
     }
-    // Ghosts behind clamped cloth edges: held, massless vertices after every element's.
+    Ok((ranges, x, v))
+}
+
+/// The builder the Behaviors fill: the vertices `x` (velocities `v`) with the ghosts behind
+/// clamped cloth edges appended (held, massless vertices after every element's), an empty
+/// system over them, and the ghosts pinned to their attachments. Returns the velocities
+/// with the ghosts' (zero) appended too.
+fn start_builder(
+    scene: &[SceneElement],
+    ranges: Vec<Option<Range<usize>>>,
+    mut x: Vec<Vector3<f64>>,
+    mut v: Vec<Vector3<f64>>,
+) -> Result<(SystemBuilder, Vec<Vector3<f64>>), SimError> {
     let mut ghosts = crate::clamp::cloth_ghosts(scene, &ranges, &x)?;
     for (g, p) in &mut ghosts {
         g.vertex = x.len();
@@ -336,6 +402,15 @@ pub fn compile_within(
         let (a, vertex) = (b.ghosts[k].attachment, b.ghosts[k].vertex);
         b.pin(a, vertex, None, scene[a].transform);
     }
+    Ok((b, v))
+}
+
+/// Every Behavior of `tree` applied in order (one listed twice is applied twice, and said).
+fn apply_tree(
+    scene: &[SceneElement],
+    tree: &BehaviorTree,
+    b: &mut SystemBuilder,
+) -> Result<(), SimError> {
     for (k, beh) in tree.behaviors.iter().enumerate() {
         if tree.behaviors[..k].iter().any(|o| o.name() == beh.name()) {
             // Applying a Behavior twice doubles its terms (damping, stiffness, gravity).
@@ -344,11 +419,15 @@ pub fn compile_within(
                 beh.name()
             ));
         }
-        beh.apply(scene, &mut b)?;
+        beh.apply(scene, b)?;
     }
-    // Every simulated vertex needs mass (or to be pinned). If none of an element's vertices has
-    // any, no material Behavior covered it; if only some lack it, they are in no triangle or
-    // segment.
+    Ok(())
+}
+
+/// Every simulated vertex needs mass (or to be pinned). If none of an element's vertices has
+/// any, no material Behavior covered it; if only some lack it, they are in no triangle or
+/// segment.
+fn check_masses(scene: &[SceneElement], b: &SystemBuilder) -> Result<(), SimError> {
     for (e, r) in scene.iter().zip(&b.ranges) {
         let Some(r) = r else { continue };
         let massless = |i: usize| b.system.mass[i] <= 0.0 && !b.system.pinned[i];
@@ -382,7 +461,12 @@ pub fn compile_within(
             message,
         });
     }
-    // Contact bands against the start state, now that every held vertex is known.
+    Ok(())
+}
+
+/// Contact bands against the start state, now that every held vertex is known: refused, or
+/// their warnings added.
+fn check_bands(scene: &[SceneElement], b: &mut SystemBuilder) -> Result<(), SimError> {
     if let Some(setup) = &b.collisions {
         let start = crate::collide::band::Start {
             scene,
@@ -394,12 +478,13 @@ pub fn compile_within(
         crate::collide::band::check(setup, &start, &mut |w| found.push(w))?;
         found.into_iter().for_each(|w| b.warn(w));
     }
-    let fluid = crate::fluid::fluid_spec(scene, &b.x, max_bytes, |e, sec| {
-        if let Some(r) = b.read.get_mut(e) {
-            r.insert(sec);
-        }
-    })?;
-    match (&fluid, b.drag_elements.is_empty()) {
+    Ok(())
+}
+
+/// Drag elements without a fluid feel nothing, and a fluid without drag elements moves no
+/// solid: either is said.
+fn warn_fluid(fluid: Option<&crate::FluidSpec>, b: &mut SystemBuilder) {
+    match (fluid, b.drag_elements.is_empty()) {
         (None, false) => b.warn(format!(
             "the Fluid Drag Behavior made {} drag elements but the scene has no fluid domain: they feel no fluid",
             b.drag_elements.len()
@@ -410,6 +495,10 @@ pub fn compile_within(
         )),
         _ => {}
     }
+}
+
+/// Every SEC that no Behavior read for its element is said, by element and type.
+fn warn_unread(scene: &[SceneElement], b: &mut SystemBuilder) {
     for (ei, e) in scene.iter().enumerate() {
         for t in e.secs.types() {
             if !b.read[ei].contains(t) {
@@ -421,8 +510,12 @@ pub fn compile_within(
             }
         }
     }
+}
+
+/// The terms in the built system, by kind (`n`: the vertices, ghosts included).
+fn term_counts(b: &SystemBuilder, n: usize) -> BTreeMap<&'static str, usize> {
     let el = &b.system.elements;
-    let terms = BTreeMap::from([
+    BTreeMap::from([
         ("membranes", el.membranes.len()),
         ("shell_bends", el.shells.len()),
         ("shell_midedges", el.midedges.len()),
@@ -440,26 +533,7 @@ pub fn compile_within(
         ),
         ("pinned", b.system.pinned.iter().filter(|p| **p).count()),
         ("vertices", n),
-    ]);
-    let base_sliders = b.system.sliders.len();
-    b.system.layout = b.x.clone();
-    Ok(Compiled {
-        state: State { x: b.x, v },
-        system: b.system,
-        ranges: b.ranges,
-        pins: b.pins,
-        clamps: b.clamps,
-        targets: b.targets,
-        freezes: b.freezes,
-        base_sliders,
-        warnings: b.warnings,
-        terms,
-        drag_elements: b.drag_elements,
-        fluid,
-        collisions: b.collisions,
-        source: std::sync::Arc::new(scene.to_vec()),
-        tree: tree.clone(),
-    })
+    ])
 }
 
 impl Compiled {

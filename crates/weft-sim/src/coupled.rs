@@ -6,19 +6,21 @@
 //! (still water deep below it, not a waterfall), and the solids get the hydrostatic part as
 //! the explicit buoyancy −ρ_f V g. Otherwise:
 //!
-//! The stages of a step, each a method of [`CoupledStepper`] that one node of the
-//! `solver.coupled` composite calls (the composite is the loop; there is no other):
-//! (1) Predict the fluid: advect → u*. (2) Newton iterations k:
-//! **A/B** sample every drag element at the current solid iterate; per sample, the drag
-//! tensor's diagonal k (per unit solid volume, from the seed's law at the current relative
-//! speed), the fluid velocity u^k and pressure gradient ∇p^k interpolated with the same
-//! trilinear weights the rasterization uses; lump them to vertices as a linear drag
-//! −D(v − u) and a pressure (buoyancy) force −V∇p. **C** implicit solid solve → v^{k+1}.
-//! **D** rasterize the samples (volume, drag, solid velocity v^{k+1}) onto the faces. **E/F**
-//! porous pressure solve from u* with the solid prescribed → u^{k+1}, p^{k+1}. **G** stop
-//! when neither velocity changed by more than the tolerance. Methods: `Newton` iterates to
-//! tolerance, `Staggered` makes one pass, `OneWay` projects the fluid without solids and
-//! lets it drive them.
+//! The stages of a step (DESIGN §6's numbers; ARCHITECTURE.md's table), each a method of
+//! [`CoupledStepper`] named as the `solver.coupled` node that calls it (the composite is
+//! the loop; there is no other): **4** `predict` advects the fluid → u* (at the start of
+//! the step it serves), and with **1** carves the obstacles; **3** the composite's Newton
+//! iterations k, each: **B** `forces` samples every drag element at the current solid
+//! iterate; per sample, the drag tensor's diagonal k (per unit solid volume, from the seed's
+//! law at the current relative speed), the fluid velocity u^k and pressure gradient ∇p^k
+//! interpolated with the same trilinear weights the rasterization uses; lumped to vertices
+//! as a linear drag −D(v − u) and a pressure (buoyancy) force −V∇p. **C** `solid`: the
+//! implicit solid solve → v^{k+1} (its first iterate is **2**, its assembly **A**). **D**
+//! `rasterize` puts the samples (volume, drag, solid velocity v^{k+1}) onto the faces.
+//! **E/F** `pressure`: the porous pressure solve from u* with the solid prescribed →
+//! u^{k+1}, p^{k+1}. **G** `update` stops when neither velocity changed by more than the
+//! tolerance. Methods: `Newton` iterates to tolerance, `Staggered` makes one pass, `OneWay`
+//! projects the fluid without solids and lets it drive them.
 //!
 //! Momentum: the fluid loses Σ_f K(u − v)dx³ + Σ_f α∇p dx³ and the solids gain
 //! Σ_s V k(u_s − v_s) − Σ_s V (∇p)_s; with the same interpolation weights on both sides
@@ -368,11 +370,11 @@ impl CoupledStepper {
         if settings.method != Coupling::OneWay {
             return Ok(done);
         }
-        done.projection_iterations = self.project(out, h, settings, 0)?.iterations;
+        done.projection_iterations = self.pressure(out, h, settings, 0)?.iterations;
         Ok(done)
     }
 
-    /// **Gather** (stages A/B): samples every drag element at positions `x` on the lattices
+    /// **Forces** (stage B): samples every drag element at positions `x` on the lattices
     /// rasterization uses ([`segment_lattice`], [`triangle_lattice`]). The lattices (sample
     /// counts, weights and volumes) come from the step's start positions `x0`, so that they do
     /// not jump between coupling iterations when an element's size crosses a lattice step (a
@@ -382,7 +384,7 @@ impl CoupledStepper {
     /// gradient and lift, all interpolated with the trilinear weights rasterization uses;
     /// lumped to vertices as linear drag and explicit forces.
     #[allow(clippy::too_many_arguments)]
-    pub fn gather(
+    pub fn forces(
         &mut self,
         elements: &[DragElement],
         x0: &[Vector3<f64>],
@@ -479,14 +481,14 @@ impl CoupledStepper {
         Ok(())
     }
 
-    /// **Solid solve** (stage C): one implicit step of `h` from `start` with the exchange's
+    /// **Solid** (stage C, with 2 and A): one implicit step of `h` from `start` with the exchange's
     /// drag and forces (written into `sys`), attached vertices at `targets`. Newton starts
     /// from `guess` when given (the last coupling iterate's positions: the forces change
     /// little between iterations, so it is close), else from x⁰ + h v⁰. With `contacts` (the
     /// scene's contact machinery, its `frame` already set, and the stats to add to), the step
     /// is the hard-contact solve `solver.solid` uses, with the same detection and checks.
     #[allow(clippy::too_many_arguments)]
-    pub fn solve_solid(
+    pub fn solid(
         &mut self,
         sys: &mut SolidSystem,
         exchange: &Exchange,
@@ -575,9 +577,9 @@ impl CoupledStepper {
         stats
     }
 
-    /// **Pressure solve** (stages E/F): projects `fluid` (u* with the solids rasterized)
+    /// **Pressure** (stages E/F): projects `fluid` (u* with the solids rasterized)
     /// onto the mixture's divergence-free fields; velocities and pressure are updated.
-    pub fn project(
+    pub fn pressure(
         &mut self,
         fluid: &mut MacGrid,
         h: f64,

@@ -47,5 +47,7 @@ pub use fluid::FluidSpec;
 pub use freeze::{FreezeFrame, FreezePin};
 pub use relaxation::{Relaxation, RelaxationMethod, fluid_change, relax, velocity_change};
 pub use slide::{SurfaceMesh, TargetPin};
-pub use stepper::{FrameStats, Scheme, SimState, SolidStepper, StepperSettings};
+pub use stepper::{
+    FrameStats, LinearFrameStats, NewtonFrameStats, Scheme, SimState, SolidStepper, StepperSettings,
+};
 pub use wrap::{BYTES_PER_BOUND_VERTEX, HairWrap, STOPPED as WRAP_STOPPED, Wrap};

@@ -95,6 +95,20 @@ pub struct FrameStats {
     /// Largest final residual of a step [m/s] (where a step's Newton loop ended by its
     /// rate, the estimate of the corrections still to come).
     pub max_residual: f64,
+    /// What the linear systems of the Newton iterations cost.
+    pub linear: LinearFrameStats,
+    /// What the Newton loops did besides full Newton steps.
+    pub newton: NewtonFrameStats,
+    /// Wall time of the frame.
+    pub seconds: f64,
+    /// Contacts with colliders: `None` when the scene builds no contact machinery.
+    pub contacts: Option<ContactFrameStats>,
+}
+
+/// What a frame's linear systems cost: assembling, factorizing and solving them, summed over
+/// steps ([`FrameStats::linear`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LinearFrameStats {
     /// Seconds assembling.
     pub assembly_seconds: f64,
     /// Seconds factorizing.
@@ -109,6 +123,13 @@ pub struct FrameStats {
     /// Factorizations retried with added inertia (the exact Hessian was not positive
     /// definite), summed over steps.
     pub inertia_shifts: usize,
+}
+
+/// What a frame's Newton loops did besides full Newton steps: the fallbacks, corrections,
+/// extrapolations and local solves that `weft-solid`'s integrator takes
+/// ([`FrameStats::newton`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct NewtonFrameStats {
     /// Newton iterations that fell back to projected Hessians, summed over steps.
     pub projected_iterations: usize,
     /// Full Newton steps accepted after a second-order correction of rod lengths.
@@ -131,10 +152,6 @@ pub struct FrameStats {
     /// Patches around lagging vertices solved locally after Newton steps (see
     /// `weft-solid`'s `integrator/elimination.rs`), summed like `curvature_moves`.
     pub eliminations: usize,
-    /// Wall time of the frame.
-    pub seconds: f64,
-    /// Contacts with colliders: `None` when the scene builds no contact machinery.
-    pub contacts: Option<ContactFrameStats>,
 }
 
 /// Steps one compiled scene. Owns the integrator (pattern and factorization workspace) and a
@@ -304,20 +321,22 @@ impl SolidStepper {
                 stats.max_newton_iterations = stats.max_newton_iterations.max(s.iterations);
                 // `f64::max` skips the NaN of a step without residuals (explicit).
                 stats.max_residual = stats.max_residual.max(s.final_residual());
-                stats.assembly_seconds += s.assembly_seconds;
-                stats.factor_seconds += s.factor_seconds;
-                stats.factorizations += s.factorizations;
-                stats.solve_seconds += s.solve_seconds;
-                stats.cg_iterations += s.cg_iterations;
-                stats.inertia_shifts += s.shifted;
-                stats.projected_iterations += s.projected;
-                stats.corrections += s.corrections;
-                stats.correction_iterations += s.correction_sweeps;
-                stats.extrapolations += s.extrapolations;
-                stats.extrapolation_halvings += s.extrapolation_halvings;
-                stats.rate_stops += s.rate_stops;
-                stats.curvature_moves += s.curvature_moves;
-                stats.eliminations += s.eliminations;
+                let linear = &mut stats.linear;
+                linear.assembly_seconds += s.assembly_seconds;
+                linear.factor_seconds += s.factor_seconds;
+                linear.factorizations += s.factorizations;
+                linear.solve_seconds += s.solve_seconds;
+                linear.cg_iterations += s.cg_iterations;
+                linear.inertia_shifts += s.shifted;
+                let newton = &mut stats.newton;
+                newton.projected_iterations += s.projected;
+                newton.corrections += s.corrections;
+                newton.correction_iterations += s.correction_sweeps;
+                newton.extrapolations += s.extrapolations;
+                newton.extrapolation_halvings += s.extrapolation_halvings;
+                newton.rate_stops += s.rate_stops;
+                newton.curvature_moves += s.curvature_moves;
+                newton.eliminations += s.eliminations;
                 *history = before.map(|b| (b, h));
                 Ok(())
             }

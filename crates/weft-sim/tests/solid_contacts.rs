@@ -47,65 +47,11 @@ fn tree() -> BehaviorTree {
     }
 }
 
-/// True when segment p→q meets triangle t, written here so the check owes nothing to the
-/// solver's geometry: the ends on opposite sides of (or on) its plane by more than rounding
-/// (1e-12 of the coordinates), and the crossing point inside it (to rounding). Both ends on
-/// the plane (coplanar pieces, as flat cloth is): it meets when an end or its middle is inside
-/// by more than 1e-9 m (an overlap of flat pieces; touching edges are not an intersection).
-fn segment_meets_triangle(p: &V, q: &V, t: &[V; 3]) -> bool {
-    let Some(n) = (t[1] - t[0]).cross(&(t[2] - t[0])).try_normalize(0.0) else {
-        return false;
-    };
-    let scale = [p, q, &t[0], &t[1], &t[2]]
-        .iter()
-        .fold(1.0f64, |m, x| m.max(x.amax()));
-    let tol = 1e-12 * scale;
-    let (dp, dq) = ((p - t[0]).dot(&n), (q - t[0]).dot(&n));
-    let inside = |x: V, margin: f64| {
-        (0..3).all(|k| {
-            let e = t[(k + 1) % 3] - t[k];
-            e.cross(&(x - t[k])).dot(&n) / e.norm() >= margin
-        })
-    };
-    if (dp > tol && dq > tol) || (dp < -tol && dq < -tol) {
-        return false;
-    }
-    if dp.abs() <= tol && dq.abs() <= tol {
-        return [*p, *q, 0.5 * (p + q)].iter().any(|&x| inside(x, 1e-9));
-    }
-    inside(p + dp / (dp - dq) * (q - p), -tol)
-}
-
 /// Pairs of triangles (not sharing a vertex) of the given global triangles that intersect:
-/// an edge of one meets the other.
+/// an edge of one meets the other, by `weft_check`'s exact test (independent of the solver).
 fn intersecting_pairs(x: &[V], tris: &[[usize; 3]]) -> usize {
-    let bounds: Vec<(V, V)> = tris
-        .iter()
-        .map(|t| {
-            let (a, b, c) = (x[t[0]], x[t[1]], x[t[2]]);
-            (a.inf(&b).inf(&c), a.sup(&b).sup(&c))
-        })
-        .collect();
-    let mut count = 0;
-    for i in 0..tris.len() {
-        for j in i + 1..tris.len() {
-            let (ti, tj) = (tris[i], tris[j]);
-            if ti.iter().any(|v| tj.contains(v)) {
-                continue;
-            }
-            let ((li, hi), (lj, hj)) = (bounds[i], bounds[j]);
-            if (0..3).any(|k| li[k] > hj[k] || lj[k] > hi[k]) {
-                continue;
-            }
-            let (pi, pj) = (ti.map(|v| x[v]), tj.map(|v| x[v]));
-            let meets = (0..3).any(|k| segment_meets_triangle(&pi[k], &pi[(k + 1) % 3], &pj))
-                || (0..3).any(|k| segment_meets_triangle(&pj[k], &pj[(k + 1) % 3], &pi));
-            if meets {
-                count += 1;
-            }
-        }
-    }
-    count
+    let corners: Vec<[[f64; 3]; 3]> = tris.iter().map(|t| t.map(|v| x[v].into())).collect();
+    weft_check::intersecting_pairs(&corners, tris)
 }
 
 /// Every cloth triangle of the scene in global vertex indices.

@@ -52,6 +52,7 @@ mod tail;
 use crate::energy::{Local, SharedHinges};
 use crate::progress::Progress;
 pub use crate::settings::{Method, Settings, StepError, StepStats, StopCheck};
+use crate::system::{SolidSystem, State};
 pub use contacts::{CONTACT_VERTICES, Contact, ContactSet, ContactStats};
 use factor::Factor;
 use linear::{LinearSystem, block_entry, value_index};
@@ -66,9 +67,10 @@ const PARALLEL_MIN: usize = 256;
 
 thread_local! {
     /// Each thread's element buffer (73 kB: allocated once per thread, never per element).
-    /// Boxed and zeroed on the heap: built by value, its initializer gave every call of
-    /// `LOCAL.with` a 73 kB stack frame, probed page by page on every element (7 % of a
-    /// 25-vertex sheet's step).
+    /// Boxed and zeroed on the heap: built by value, its initializer gives every call of
+    /// `LOCAL.with` a 73 kB stack frame, probed page by page on every element, a cost that
+    /// shows in a small sheet's short steps (`bench/peers`' squares measure it; figures in
+    /// docs/history/issue-71-comments.md).
     static LOCAL: RefCell<Box<Local>> = RefCell::new(new_local());
 }
 
@@ -99,22 +101,21 @@ enum Hessians {
 /// Inertia added, as a fraction of mᵢ/h² per vertex, the first time an exact Hessian is not
 /// positive definite; each retry adds 5× the last (in all 0.01, 0.06, 0.31, 1.56),
 /// [`SHIFT_TRIES`] tries (one more after a restart, [`shift_ladder`]), before the projected
-/// Hessians are used instead. Measured on the hanging cloth (24 frames): from 0.01, 8.8
-/// Newton iterations a step (at most 17); going straight to the projected Hessians, 9.4 (at
-/// most 49: projected steps stagnate where the cloth buckles).
+/// Hessians are used instead. Starting this small keeps the shifted direction near the exact
+/// Newton step, so buckling cloth keeps its fast convergence; going straight to the projected
+/// Hessians costs iterations, since projected steps stagnate where the cloth buckles (the
+/// hanging cloth's Newton counts measure it; figures in docs/history/issue-71-comments.md).
 const FIRST_SHIFT: f64 = 0.01;
 const SHIFT_TRIES: usize = 4;
 
 /// Later in the same step, the tries start at this fraction of the inertia that last made the
 /// Hessian positive definite (never below [`FIRST_SHIFT`]): an iterate near the last needs
-/// about as much. Measured (24 frames; iterations, inertia tries, falls back to projection):
-/// cloth_hang 428, 304, 11 → 429, 159, 6 (farm-bench wall A/B 0.93); curtain_rail 319, 358,
-/// 17 → 313, 327, 14; cloth_release 259, 141, 14 → 256, 100, 14; the hanging square of
-/// `bench/peers` at 16², 874, 677, 146 → 881, 621, 126. Carried from one step to the next
-/// it cost the square 23–50 % more iterations at fractions 0.2–0.5 and cloth_hang 77 % at 1
-/// (the shifted directions are shorter), and a step would depend on the steps before it.
-/// A restart that fails climbs back to that last inertia before growing 5× a try
-/// ([`shift_ladder`]).
+/// about as much, so starting near it skips tries that would fail, at about the same Newton
+/// iterations. Carried from one step to the next it would cost iterations (the shifted
+/// directions are shorter), and a step would depend on the steps before it. A restart that
+/// fails climbs back to that last inertia before growing 5× a try ([`shift_ladder`]). The
+/// examples' inertia tries and iterations (`--stats-json`) and `bench/peers`' hanging square
+/// measure it; figures in docs/history/issue-71-comments.md.
 const SHIFT_RESTART: f64 = 0.5;
 
 /// The inertia each try of one iteration adds (fractions of mᵢ/h², summed over the tries),
@@ -124,14 +125,12 @@ const SHIFT_RESTART: f64 = 0.5;
 /// fraction first (at least 0.01), then back to L itself, then increments growing 5× from
 /// the larger of the first two (one try more: totals ½L, L, 3.5L, 16L, 78.5L for L ≥ 0.02;
 /// 0.01, L, L + 0.05, L + 0.30, L + 1.55 below, so the ceiling never falls under the fresh
-/// ladder's). Growing 5× straight from ½L (totals ½L, 3L, 15.5L, 78L) left a failed restart
-/// 3× above the inertia that had just worked: where a sheet buckles (the 128² sheet of
-/// `bench/sheet_graph.py`, its fourth frame) the totals then rose and fell 4.7, 2.3, 7.0,
-/// 3.5, 1.8, 5.3, … m/h² over 18 iterations, each direction too short. Measured (Newton
-/// iterations a step, factorizations): that sheet 6.83, 67 → 6.00, 58 over 6 frames;
-/// cloth_hang 6.17, 376 → 6.06, 370; cloth_release 3.96, 299 → 3.83, 292; curtain_rail
-/// and buttoned_panel unchanged; the 32² sheet 5.33 → 7.00, where the ratchet's large shifts
-/// had ended the buckling step 0.79 mm short of its converged answer (now 4.3e-7 m).
+/// ladder's). Growing 5× straight from ½L (totals ½L, 3L, 15.5L, 78L) would leave a failed
+/// restart 3× above the inertia that had just worked: where a sheet buckles the totals then
+/// rise and fall from iteration to iteration, each direction too short, and the step can end
+/// short of its converged answer. Climbing back to L keeps the shift near what worked, even
+/// where that costs a buckling step iterations (`bench/sheet_graph.py`'s sheets and the
+/// examples' counts measure it; figures in docs/history/issue-71-comments.md).
 fn shift_ladder(last: f64) -> impl Iterator<Item = f64> {
     let start = (SHIFT_RESTART * last).max(FIRST_SHIFT);
     let back = (start < last).then_some(last - start);
@@ -151,12 +150,12 @@ fn shift_ladder(last: f64) -> impl Iterator<Item = f64> {
 
 /// The fraction α of each vertex's inertia mᵢ/h² that a contact step's membranes may spend
 /// on their negative curvature ([`Integrator::fill_budget`]; the rest keeps the model
-/// positive definite). Measured (24 frames; Newton iterations a step, retried substeps,
-/// wall), projected membranes (α = 0) → α = 0.9: cloth_drape 14.25 → 12.58, 0 → 0,
-/// farm-bench wall A/B 0.93; cloth_pile 11.71 → 10.58, 0 → 0, A/B 0.93; hair_pile over 8
-/// rounding-level perturbations (`bench/ensemble.py`) 10.36 → 9.60, 34 → 25 retried, mean
-/// wall 9.87 → 9.59 s (BENCHMARKS.md, twenty-fourth session).
-/// α = 0.5 gained half as much; 0.99 no more than 0.9 (cloth_drape 12.40, cloth_pile 10.88).
+/// positive definite). Keeping most of the exact Hessian's negative curvature brings the
+/// contact step's Newton model near the true one where cloth is compressed, so it takes
+/// fewer iterations and retries fewer substeps than projected membranes (α = 0), while the
+/// inertia left keeps ADMM's model convex. A smaller α gains less; one closer to 1 gains
+/// nothing more. `weft bench contact` and `bench/ensemble.py` on the contact examples
+/// measure it; figures in docs/history/issue-71-comments.md.
 const CONTACT_CURVATURE: f64 = 0.9;
 
 /// What is minimized: the incremental potential of a time step, or the static potential.
@@ -164,6 +163,15 @@ const CONTACT_CURVATURE: f64 = 0.9;
 enum Mode {
     Dynamic { h: f64 },
     Static,
+}
+
+/// Where a step starts: x⁰, each held vertex's target, and the caller's guess of the end
+/// positions (checked: right length, finite).
+#[derive(Clone, Copy)]
+struct Start<'a> {
+    x0: &'a [Vector3<f64>],
+    target: &'a dyn Fn(usize) -> Vector3<f64>,
+    guess: Option<&'a [Vector3<f64>]>,
 }
 
 /// The direction solver's room: H's factorization and the preconditioners CG may use in
@@ -185,21 +193,31 @@ struct Directions {
     single: Option<one_ring::OneRing>,
     /// Whether `one_ring` and `single` were built (or found not to pay) for this pattern.
     one_ring_tried: bool,
-    /// Whether this step's preconditioned directions go through `single`, not `one_ring`.
-    pcg_single: bool,
-    /// Whether the current Newton iteration's directions go through a preconditioner
-    /// (`one_ring`, or `single` where `pcg_single` is set).
-    pcg: bool,
+    /// What the current Newton iteration's directions go through: set by `minimize` for a
+    /// step, turned to [`Route::Factor`] for the rest of it where a preconditioner fails or
+    /// declines, and from the one-ring's to the single-precision one where that declines.
+    route: Route,
+}
+
+/// The direction solvers that exist: H's own factorization, or conjugate gradients
+/// preconditioned by one of the two cheaper factors (`one_ring.rs`).
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Route {
+    /// H's factorization (`factor.rs`): every contact step, static solve and linearized step.
+    Factor,
+    /// CG preconditioned by the factor of H's one-ring (`Directions::one_ring`).
+    OneRing,
+    /// CG preconditioned by H's pattern factored in single precision (`Directions::single`).
+    Single,
 }
 
 impl Directions {
-    /// The preconditioner the Newton directions go through while `pcg` is set: the
-    /// one-ring's, or the single-precision one (`pcg_single`).
+    /// The preconditioner the Newton directions go through on `route`, if it exists.
     fn preconditioner(&mut self) -> Option<&mut one_ring::OneRing> {
-        match (self.pcg, self.pcg_single) {
-            (false, _) => None,
-            (true, false) => self.one_ring.as_mut(),
-            (true, true) => self.single.as_mut(),
+        match self.route {
+            Route::Factor => None,
+            Route::OneRing => self.one_ring.as_mut(),
+            Route::Single => self.single.as_mut(),
         }
     }
 }
@@ -255,9 +273,9 @@ struct Modes {
     /// Whether a contact step sums a geometric tail of its full steps (`tail.rs`): systems
     /// with membranes (whose clamped curvature makes the tails) and no rods. Rods' exact
     /// Hessians make none; their tails are crawls (hair sliding over hair, steps falling
-    /// 0.3 % an iteration), and summing those in hair_pile (hair with a cloth) gave 5–17
-    /// pass-throughs and one failed run in 8 where the plain steps gave 1 and none.
-    /// Tests set it to compare.
+    /// slowly an iteration), and summing those lets strands pass through strands more often
+    /// and can fail a run (`bench/ensemble.py` on hair_pile measures it; figures in
+    /// docs/history/issue-71-comments.md). Tests set it to compare.
     tails: bool,
 }
 
@@ -318,9 +336,9 @@ impl Integrator {
     /// caller): the limit the later factors are built within (a rebuild for contacts, the
     /// preconditioners) becomes that plus what this integrator already holds. A limit set
     /// once at the start would not see what the process allocated since (the frames kept,
-    /// the files written): measured under a tight `ulimit -v`, the one-ring's split of a 100²
-    /// sheet failed to allocate at the first step with the limit of the setup frame. Without
-    /// a limit (`new`), none is set.
+    /// the files written), so under a tight `ulimit -v` a factor built within it could still
+    /// fail to allocate (weft-cli's `tests/memory.rs` runs such ceilings). Without a limit
+    /// (`new`), none is set.
     pub fn set_available(&mut self, available: u64) {
         if self.hooks.max_bytes.is_some() {
             self.hooks.max_bytes = Some(available.saturating_add(self.held_bytes()));
@@ -337,6 +355,73 @@ impl Integrator {
     /// Where the steps store their progress, if anywhere.
     pub fn progress(&self) -> Option<&Arc<Progress>> {
         self.hooks.progress.as_ref()
+    }
+
+    /// [`Self::step`] with Newton starting from `guess` (end-of-step positions, e.g. the
+    /// last coupling iteration's) instead of x⁰ + h v⁰. The answer is the same minimizer to
+    /// the tolerance; a good guess needs fewer iterations. Pinned vertices still go to their
+    /// targets; a guess of the wrong length, or not finite, is ignored.
+    ///
+    /// The one place a step chooses its method: each method's step lives in its own file
+    /// (`newton.rs`: implicit, static and explicit steps), so another plugs in here.
+    pub fn step_from(
+        &mut self,
+        sys: &SolidSystem,
+        state: &mut State,
+        guess: Option<&[Vector3<f64>]>,
+        pinned_to: Option<&[Vector3<f64>]>,
+        h: f64,
+        settings: &Settings,
+    ) -> Result<StepStats, StepError> {
+        sys.check(state)?;
+        let guess = guess.filter(|g| {
+            g.len() == state.x.len() && g.iter().all(|p| p.iter().all(|c| c.is_finite()))
+        });
+        let x0 = state.x.clone();
+        let target = |i: usize| pinned_to.map_or(x0[i], |p| p[i]);
+        let start = Start {
+            x0: &x0,
+            target: &target,
+            guess,
+        };
+        match settings.method {
+            Method::Explicit => self.explicit_step(sys, state, start, h),
+            Method::Static => self.static_step(sys, state, start, settings),
+            Method::Newton | Method::ProjectedNewton | Method::Linearized => {
+                self.implicit_step(sys, state, start, h, settings)
+            }
+        }
+    }
+
+    /// [`Integrator::step`] with `set.contacts`: implicit Euler whose end-of-step velocities
+    /// obey Signorini–Coulomb at every contact. ADMM stops when the split's primal and dual
+    /// residuals are below `settings.tolerance` [m/s], within `set.max_admm` iterations a
+    /// Newton iteration; each Newton update is line-searched on the primal objective. With
+    /// no contacts, a Newton method's step is [`Integrator::step_from`]'s (from the guess).
+    ///
+    /// Every method's contact step is Newton's (`contact_step.rs`) today; a method with its
+    /// own takes its arm here.
+    pub fn step_contacts(
+        &mut self,
+        sys: &SolidSystem,
+        state: &mut State,
+        pinned_to: Option<&[Vector3<f64>]>,
+        h: f64,
+        settings: &Settings,
+        set: ContactSet<'_>,
+    ) -> Result<(StepStats, ContactStats), StepError> {
+        match settings.method {
+            Method::Explicit
+            | Method::Linearized
+            | Method::Newton
+            | Method::ProjectedNewton
+            | Method::Static => {
+                // On a worker of the thread pool, for the assembly's fork–joins (`in_pool`).
+                in_pool(self.threaded(), || {
+                    self.step_contacts_here(sys, state, pinned_to, h, settings, set)
+                })
+            }
+        }
     }
 
     /// Stores Newton iteration `iteration`'s (1-based) step [m/s] for the progress line.

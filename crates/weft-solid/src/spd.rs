@@ -19,8 +19,8 @@ macro_rules! impl_project {
             fn project_psd(&mut self) {
                 // Fast path: a Cholesky factorization (~d³/6 flops) proves positive
                 // definiteness, and most element Hessians are (stretched membranes, rods at
-                // rest); the eigendecomposition costs ~30× more. Measured: the membranes'
-                // share of assembly on the hanging cloth drops accordingly.
+                // rest); the eigendecomposition costs ~30× more, so the membranes' share of
+                // assembly falls with it (`weft bench solid`'s hanging cloth measures it).
                 if self.cholesky().is_some() {
                     return;
                 }

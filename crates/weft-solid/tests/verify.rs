@@ -282,8 +282,8 @@ fn a_settling_fibre_falls_at_its_slender_body_speeds() {
 
 /// A loose Newton tolerance still takes the step: a body at rest whose velocity change in a
 /// step (g·h = 0.098 m/s) is below the tolerance (0.1 m/s) falls at −g·h after it, exactly
-/// (free fall is linear: one Newton step is the implicit Euler answer to rounding). Before
-/// the fix the converged test came before the correction and the body never moved.
+/// (free fall is linear: one Newton step is the implicit Euler answer to rounding). With the
+/// converged test before the correction, the body would never move.
 #[test]
 fn a_tolerance_looser_than_the_step_still_moves_the_body() {
     let mut sys = SolidSystem::new(vec![1.0]);

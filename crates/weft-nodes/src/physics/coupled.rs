@@ -363,7 +363,7 @@ pub(super) fn forces(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), Node
         Some(g) => {
             let x = &it.sim.solid;
             ws.stepper
-                .gather(
+                .forces(
                     &step.compiled.drag_elements,
                     &step.start.solid.x,
                     &x.x,
@@ -447,7 +447,7 @@ pub(super) fn solid(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), NodeE
     let t = std::time::Instant::now();
     let stats = ws
         .stepper
-        .solve_solid(
+        .solid(
             sys,
             ex,
             &step.start.solid,
@@ -541,7 +541,7 @@ pub(super) fn pressure(ws: &mut Workspace, cx: &mut EvalCx<'_>) -> Result<(), No
             let mut g = MacGrid::clone(g);
             let ps = ws
                 .stepper
-                .project(&mut g, step.h, &st, faces.1)
+                .pressure(&mut g, step.h, &st, faces.1)
                 .map_err(|e| stage_error(frame, e, &ws.interrupt))?;
             ws.record(serde_json::json!({
                 "frame": frame, "iteration": faces.1, "cg_iterations": ps.iterations, "divergence": ps.divergence,

@@ -8,8 +8,8 @@
 //! with the nodes upstream, not copied); the compiled system rides along (shared), so resuming
 //! from any checkpoint continues exactly. The output scene is built from them when it is asked
 //! for, not kept with every frame's state: a frame's kept state is then its positions and
-//! velocities (a copied scene, geometry and channels, was most of it: 8.8 kB a frame on a
-//! 22-vertex ribbon, whose fresh pages cost a frame several microseconds in faults).
+//! velocities (a copied scene, geometry and channels, would be most of it, and its fresh
+//! pages would cost every frame page faults).
 
 use super::types::Scene;
 use std::collections::VecDeque;
@@ -268,9 +268,8 @@ impl Step for SolidSolver {
     fn state_bytes(&self, state: &Value, _: &weft_graph::Registry) -> usize {
         // Positions and velocities, BDF2's history of them when it keeps one, and the frame's
         // input elements. Those are shared with upstream, and across frames where upstream
-        // does not change, but counted in each (as the output scene kept until the nineteenth
-        // session was): a collider moved every frame is a new element every frame, and the
-        // memory budget must see it.
+        // does not change, but counted in each, as a copy would be: a collider moved every
+        // frame is a new element every frame, and the memory budget must see it.
         state.get::<SolverState>().map_or(0, |s| {
             48 * s.sim.solid.x.len() * (1 + usize::from(s.sim.history.is_some()))
                 + s.elements().map(SceneElement::heap_bytes).sum::<usize>()
@@ -317,15 +316,15 @@ impl Step for SolidSolver {
                 let mut j = serde_json::json!({
                     "frame": f, "steps": s.steps, "retries": s.retries, "newton_iterations": s.newton_iterations,
                     "max_newton_iterations": s.max_newton_iterations, "max_residual": s.max_residual,
-                    "assembly_seconds": s.assembly_seconds, "factor_seconds": s.factor_seconds,
-                    "factorizations": s.factorizations,
-                    "solve_seconds": s.solve_seconds, "cg_iterations": s.cg_iterations, "seconds": s.seconds,
-                    "inertia_shifts": s.inertia_shifts, "projected_iterations": s.projected_iterations,
-                    "corrections": s.corrections, "correction_iterations": s.correction_iterations,
-                    "extrapolations": s.extrapolations,
-                    "extrapolation_halvings": s.extrapolation_halvings,
-                    "rate_stops": s.rate_stops, "curvature_moves": s.curvature_moves,
-                    "eliminations": s.eliminations,
+                    "assembly_seconds": s.linear.assembly_seconds, "factor_seconds": s.linear.factor_seconds,
+                    "factorizations": s.linear.factorizations,
+                    "solve_seconds": s.linear.solve_seconds, "cg_iterations": s.linear.cg_iterations, "seconds": s.seconds,
+                    "inertia_shifts": s.linear.inertia_shifts, "projected_iterations": s.newton.projected_iterations,
+                    "corrections": s.newton.corrections, "correction_iterations": s.newton.correction_iterations,
+                    "extrapolations": s.newton.extrapolations,
+                    "extrapolation_halvings": s.newton.extrapolation_halvings,
+                    "rate_stops": s.newton.rate_stops, "curvature_moves": s.newton.curvature_moves,
+                    "eliminations": s.newton.eliminations,
                     "retry_causes": s.retry_causes.iter().map(|(_, m)| m).collect::<Vec<_>>(),
                 });
                 if let Some(c) = &s.contacts {

@@ -17,7 +17,10 @@
 
 use super::bvh::BoxTree;
 use super::ccd::{self, PairKind};
-use super::{CollisionSetup, Detector, inverse, judged_nearest, nearest};
+use super::detect::Detector;
+use super::live::inverse;
+use super::planes::{judged_nearest, nearest};
+use super::setup::CollisionSetup;
 use crate::behavior::bad;
 use crate::error::SimError;
 use nalgebra::Vector3;

@@ -144,6 +144,14 @@ pub(crate) fn closest_segment_triangle(p: &V, q: &V, a: &V, b: &V, c: &V) -> (f6
     best
 }
 
+/// The unit normal of a triangle by its winding (zero for a degenerate one).
+pub(crate) fn face_normal(tri: &[V; 3]) -> V {
+    (tri[1] - tri[0])
+        .cross(&(tri[2] - tri[0]))
+        .try_normalize(0.0)
+        .unwrap_or_else(V::zeros)
+}
+
 /// An orthonormal frame with first row `n` (unit): rows n, t₁, t₂.
 pub(crate) fn frame(n: &V) -> nalgebra::Matrix3<f64> {
     // Branch-free basis (Duff et al. 2017, "Building an orthonormal basis, revisited").

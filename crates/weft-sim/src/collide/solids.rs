@@ -42,7 +42,8 @@
 use super::bvh::BoxTree;
 use super::ccd::{self, PairKind};
 use super::geometry::{closest_on_triangle, closest_segment_segment, frame};
-use super::{CollisionSetup, SolidPair};
+use super::room::Room;
+use super::setup::{CollisionSetup, SolidPair};
 use nalgebra::Vector3;
 use std::collections::{BTreeMap, BTreeSet};
 use std::ops::Range;
@@ -110,8 +111,8 @@ pub(crate) struct Solids {
     found: Vec<(u32, u32)>,
     keys: BTreeSet<(u8, u32, u32)>,
     times: SolidTimes,
-    /// The most candidate pairs of primitives, and contacts, a step may hold (`super::Room`).
-    room: super::Room,
+    /// The most candidate pairs of primitives, and contacts, a step may hold ([`Room`]).
+    room: Room,
     /// Whether this step's detection stopped at `room` (taken by [`Self::take_overflow`]).
     overflow: bool,
 }
@@ -121,7 +122,7 @@ impl Solids {
     pub(crate) fn new(
         setup: &CollisionSetup,
         ranges: &[Option<Range<usize>>],
-        room: super::Room,
+        room: Room,
     ) -> Option<Self> {
         if setup.solid_pairs.is_empty() {
             return None;
@@ -211,7 +212,7 @@ impl Solids {
     }
 
     /// Holds at most `room` candidate pairs and contacts a step from now on.
-    pub(crate) fn set_room(&mut self, room: super::Room) {
+    pub(crate) fn set_room(&mut self, room: Room) {
         self.room = room;
     }
 

@@ -3,16 +3,30 @@
 //! exactly, and solve again with the contacts the check added, Newton starting where the
 //! last solve ended and ADMM from its impulses.
 
+use super::detect::Detector;
+use super::room::{CONTACT_BYTES, PAIR_BYTES, Room};
+use super::setup::CollisionSetup;
 use super::solids::Solids;
-use super::{CollisionSetup, Detector, MAX_ROUNDS, MAX_SEGMENT_ROUNDS, Room};
 use crate::build::Compiled;
 use crate::error::SimError;
 use nalgebra::Vector3;
+use std::ops::Range;
 use std::sync::Arc;
 use std::time::Instant;
 use weft_scene::{SceneElement, Transform};
-use weft_solid::integrator::{Contact, ContactSet};
+use weft_solid::integrator::{Contact, ContactSet, ContactStats};
 use weft_solid::{Integrator, Settings, SolidSystem, State, StepError, StepStats};
+
+/// Rounds of exact checking allowed per step before the step is accepted as it is (and its
+/// penetration reported).
+const MAX_ROUNDS: usize = 4;
+/// Rounds allowed while the last check still added hair segment contacts. A segment sliding
+/// over a faceted collider is linearized at one point a round, and the point that ends
+/// deepest moves along the segment from round to round (hair_on_head, frame 12: 0.30, 0.32,
+/// 0.22 mm at s = 0.36, 0.50, 0.62 of one segment); four rounds let a step end a segment
+/// 0.1 mm inside the 2 mm kept whenever the solves' rounding changed. Eight rounds for every
+/// contact cost the cloth pile 20 % for nothing; segments alone need them.
+const MAX_SEGMENT_ROUNDS: usize = 8;
 
 /// What contacts cost and did over a frame (or a coupling iteration).
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -111,7 +125,7 @@ impl Contacts {
     /// Says how much more the process may allocate now [bytes]: the room of a step's
     /// contact lists becomes a share of that and of what they already hold.
     pub fn set_available(&mut self, available: u64) {
-        let held = self.contacts.capacity() as u64 * super::CONTACT_BYTES;
+        let held = self.contacts.capacity() as u64 * CONTACT_BYTES;
         let bytes = available.saturating_add(held);
         self.room = Room::within(Some(bytes));
         self.detector.set_room(self.room.contacts);
@@ -128,12 +142,12 @@ impl Contacts {
             return Ok(());
         }
         let (what, count, each) = if self.contacts.len() >= self.room.contacts {
-            ("contacts", self.room.contacts, super::CONTACT_BYTES)
+            ("contacts", self.room.contacts, CONTACT_BYTES)
         } else {
             (
                 "pairs of primitives within reach",
                 self.room.pairs,
-                super::PAIR_BYTES,
+                PAIR_BYTES,
             )
         };
         Err(StepError::ContactsTooMany {
@@ -185,44 +199,11 @@ impl Contacts {
         let compiled = self.compiled.clone();
         let c = &*compiled;
         let setup = c.collisions.as_ref().expect("checked in new");
-        let t = Instant::now();
-        self.detector.detect(
-            setup,
-            &c.ranges,
-            &sys.pinned,
-            &st.x,
-            &st.v,
-            (s0, s1, h),
-            &mut self.contacts,
-        );
-        if let Some(solids) = &mut self.solids {
-            solids.detect(setup, &sys.pinned, &st.x, &st.v, h, &mut self.contacts);
-        }
-        cs.detection_seconds += t.elapsed().as_secs_f64();
-        self.overflowed()?;
+        self.detect_start(setup, &c.ranges, &sys.pinned, st, (s0, s1, h), cs)?;
         let mut round = 0;
         // The work of the rounds solved again, counted into the step's statistics.
         let mut discarded = StepStats::default();
-        // The last solve's end: the next solve's first Newton iterate. The step is the same
-        // minimization with a few more constraints (each solve starts from the step's start
-        // state, its contacts linearized there), so the last answer is close to the next
-        // and a solve from it takes a few iterations where one from the prediction took
-        // them all again: re-solves were half of every contact example's Newton
-        // iterations (cloth_pile 1,112 of 1,991, hair_on_head 418 of 790).
-        let mut last: Option<Vec<Vector3<f64>>> = None;
-        // And its impulses, for ADMM's multipliers: the check appends the contacts it adds,
-        // so the last round's contacts keep their places (the added ones start at zero).
-        // On top of the positions: cloth_pile 13.44 → 10.93 Newton iterations a step,
-        // hair_pile 15.03 → 11.20.
-        let mut impulses: Vec<[f64; 3]> = Vec::new();
-        // And ADMM's scale σ of ρ where it ended: a round solved again has the last round's
-        // contacts and a few more, so the scale ADMM balanced them at still suits them, where
-        // starting at 1 walks down to it again (hair_on_head walks to 1e-4–1e-5 in its first
-        // Newton iteration). Within the step only, so a step depends on its inputs alone.
-        // Measured (24 frames, Newton iterations a step): hair_on_head 12.23 → 11.29,
-        // hair_pile 12.18 → 10.87 (0 → 2 substeps retried), cloth_pile 12.39 → 11.71,
-        // cloth_drape 14.20 → 14.25.
-        let mut sigma = 0.0;
+        let mut warm = Warm::default();
         loop {
             let mut trial = st.clone();
             let (step, contact) = integrator.step_contacts(
@@ -234,80 +215,37 @@ impl Contacts {
                 ContactSet {
                     contacts: &self.contacts,
                     max_admm: self.max_admm,
-                    warm: &impulses,
-                    guess: last.as_deref().or(guess),
-                    sigma,
+                    warm: &warm.impulses,
+                    guess: warm.last.as_deref().or(guess),
+                    sigma: warm.sigma,
                     give_up: !last_try,
                     reach: self.reach,
                 },
             )?;
-            cs.admm_iterations += contact.admm_iterations;
-            cs.admm_seconds += contact.admm_seconds;
-            cs.pattern_rebuilds += usize::from(contact.pattern_rebuilt);
-            cs.low_rank_joins += contact.low_rank_joins;
-            let t = Instant::now();
-            let checked = self.detector.check(
+            count_solve(&contact, cs);
+            let checked = self.check_round(
                 setup,
                 &c.ranges,
                 &sys.pinned,
-                &st.x,
-                &trial.x,
+                (&st.x, &trial.x),
                 (s0, s1, h),
-                &mut self.contacts,
-            );
-            let (mut added, mut penetration) = (checked.added, checked.deepest);
-            let mut crossing = (0, 1.0);
-            if let Some(solids) = &mut self.solids {
-                let k = solids.check(
-                    setup,
-                    &sys.pinned,
-                    &st.x,
-                    &trial.x,
-                    h,
-                    settings.tolerance * h,
-                    &mut self.contacts,
-                );
-                added += k.added;
-                penetration = penetration.max(k.deepest);
-                crossing = (k.crossing, k.toi);
-                cs.started_inside = cs.started_inside.max(k.started_inside);
-            }
-            cs.detection_seconds += t.elapsed().as_secs_f64();
-            self.overflowed()?;
-            if let Some(solids) = &mut self.solids {
-                let times = solids.take_times();
-                cs.broad_seconds += times.broad;
-                cs.narrow_seconds += times.narrow;
-                cs.ccd_seconds += times.ccd;
-            }
+                settings.tolerance * h,
+                cs,
+            )?;
             round += 1;
-            // Past MAX_ROUNDS only while hair segments still get contacts (see
-            // MAX_SEGMENT_ROUNDS), and only for them.
-            let more = round < MAX_ROUNDS
-                || (round < MAX_SEGMENT_ROUNDS
-                    && checked.segments > 0
-                    && checked.segments == added);
-            if added == 0 || !more {
-                if crossing.0 > 0 {
+            if checked.added == 0 || !more_rounds(round, checked.segments, checked.added) {
+                let (crossing, toi) = checked.crossing;
+                if crossing > 0 {
                     if !last_try {
                         cs.crossing_retries += 1;
-                        return Err(StepError::Intersecting { pairs: crossing.0 });
+                        return Err(StepError::Intersecting { pairs: crossing });
                     }
-                    // Back along the straight paths to the time they were proven apart;
-                    // held vertices keep their targets.
                     cs.cut_backs += 1;
-                    for (i, (x, x0)) in trial.x.iter_mut().zip(&st.x).enumerate() {
-                        if !sys.pinned[i] {
-                            *x = x0 + crossing.1 * (*x - x0);
-                        }
-                    }
-                    for ((v, x), x0) in trial.v.iter_mut().zip(&trial.x).zip(&st.x) {
-                        *v = (x - x0) / h;
-                    }
+                    cut_back(&mut trial, st, &sys.pinned, toi, h);
                 }
                 cs.max_contacts = cs.max_contacts.max(self.contacts.len());
                 cs.contacts += self.contacts.len();
-                cs.max_penetration = cs.max_penetration.max(penetration);
+                cs.max_penetration = cs.max_penetration.max(checked.penetration);
                 cs.max_residual = cs.max_residual.max(contact.max_residual);
                 *st = trial;
                 let mut step = step;
@@ -316,10 +254,156 @@ impl Contacts {
             }
             discarded.absorb(&step);
             cs.resolves += 1;
-            last = Some(trial.x);
-            impulses = contact.impulses;
-            sigma = contact.sigma;
+            warm = Warm {
+                last: Some(trial.x),
+                impulses: contact.impulses,
+                sigma: contact.sigma,
+            };
         }
+    }
+
+    /// The contacts of a step from `st`, detected before it is solved (against the colliders,
+    /// then between the solids), replacing the last step's.
+    fn detect_start(
+        &mut self,
+        setup: &CollisionSetup,
+        ranges: &[Option<Range<usize>>],
+        pinned: &[bool],
+        st: &State,
+        (s0, s1, h): (f64, f64, f64),
+        cs: &mut ContactFrameStats,
+    ) -> Result<(), StepError> {
+        let t = Instant::now();
+        self.detector.detect(
+            setup,
+            ranges,
+            pinned,
+            &st.x,
+            &st.v,
+            (s0, s1, h),
+            &mut self.contacts,
+        );
+        if let Some(solids) = &mut self.solids {
+            solids.detect(setup, pinned, &st.x, &st.v, h, &mut self.contacts);
+        }
+        cs.detection_seconds += t.elapsed().as_secs_f64();
+        self.overflowed()
+    }
+
+    /// The exact check after a solve that took the step from `x0` to `x1`: the contacts it
+    /// adds are appended to the step's, and what it found is returned. `tol`: the distance a
+    /// contact met to the solver's tolerance may leave over the step (`Solids::check`).
+    #[allow(clippy::too_many_arguments)]
+    fn check_round(
+        &mut self,
+        setup: &CollisionSetup,
+        ranges: &[Option<Range<usize>>],
+        pinned: &[bool],
+        (x0, x1): (&[Vector3<f64>], &[Vector3<f64>]),
+        (s0, s1, h): (f64, f64, f64),
+        tol: f64,
+        cs: &mut ContactFrameStats,
+    ) -> Result<Round, StepError> {
+        let t = Instant::now();
+        let checked = self.detector.check(
+            setup,
+            ranges,
+            pinned,
+            x0,
+            x1,
+            (s0, s1, h),
+            &mut self.contacts,
+        );
+        let (mut added, mut penetration) = (checked.added, checked.deepest);
+        let mut crossing = (0, 1.0);
+        if let Some(solids) = &mut self.solids {
+            let k = solids.check(setup, pinned, x0, x1, h, tol, &mut self.contacts);
+            added += k.added;
+            penetration = penetration.max(k.deepest);
+            crossing = (k.crossing, k.toi);
+            cs.started_inside = cs.started_inside.max(k.started_inside);
+        }
+        cs.detection_seconds += t.elapsed().as_secs_f64();
+        self.overflowed()?;
+        if let Some(solids) = &mut self.solids {
+            let times = solids.take_times();
+            cs.broad_seconds += times.broad;
+            cs.narrow_seconds += times.narrow;
+            cs.ccd_seconds += times.ccd;
+        }
+        Ok(Round {
+            added,
+            segments: checked.segments,
+            penetration,
+            crossing,
+        })
+    }
+}
+
+/// Where a round solved again starts from: the last solve's end, impulses and ADMM scale.
+/// Within the step only, so a step depends on its inputs alone.
+#[derive(Default)]
+struct Warm {
+    /// The last solve's end: the next solve's first Newton iterate. The step is the same
+    /// minimization with a few more constraints (each solve starts from the step's start
+    /// state, its contacts linearized there), so the last answer is close to the next
+    /// and a solve from it takes a few iterations where one from the prediction took
+    /// them all again: re-solves were half of every contact example's Newton
+    /// iterations (cloth_pile 1,112 of 1,991, hair_on_head 418 of 790).
+    last: Option<Vec<Vector3<f64>>>,
+    /// And its impulses, for ADMM's multipliers: the check appends the contacts it adds,
+    /// so the last round's contacts keep their places (the added ones start at zero).
+    /// On top of the positions: cloth_pile 13.44 → 10.93 Newton iterations a step,
+    /// hair_pile 15.03 → 11.20.
+    impulses: Vec<[f64; 3]>,
+    /// And ADMM's scale σ of ρ where it ended: a round solved again has the last round's
+    /// contacts and a few more, so the scale ADMM balanced them at still suits them, where
+    /// starting at 1 walks down to it again (hair_on_head walks to 1e-4–1e-5 in its first
+    /// Newton iteration). 0 for the first solve (ADMM starts at 1). Measured (24 frames,
+    /// Newton iterations a step): hair_on_head 12.23 → 11.29, hair_pile 12.18 → 10.87
+    /// (0 → 2 substeps retried), cloth_pile 12.39 → 11.71, cloth_drape 14.20 → 14.25.
+    sigma: f64,
+}
+
+/// What a round's exact check found, against the colliders and between the solids.
+struct Round {
+    /// Contacts added.
+    added: usize,
+    /// Of those, hair segments' against colliders.
+    segments: usize,
+    /// The largest penetration at the solve's end [m].
+    penetration: f64,
+    /// Pairs of primitives of the solids still crossing, and the fraction of the step along
+    /// the straight paths at which they were last proven apart.
+    crossing: (usize, f64),
+}
+
+/// A solve's ADMM counts, into the frame's.
+fn count_solve(contact: &ContactStats, cs: &mut ContactFrameStats) {
+    cs.admm_iterations += contact.admm_iterations;
+    cs.admm_seconds += contact.admm_seconds;
+    cs.pattern_rebuilds += usize::from(contact.pattern_rebuilt);
+    cs.low_rank_joins += contact.low_rank_joins;
+}
+
+/// Whether a check that added contacts after solve `round` (`segments` of the `added`
+/// against colliders by hair segments) gets the step solved again: past MAX_ROUNDS only
+/// while hair segments still get contacts (see MAX_SEGMENT_ROUNDS), and only for them.
+fn more_rounds(round: usize, segments: usize, added: usize) -> bool {
+    round < MAX_ROUNDS || (round < MAX_SEGMENT_ROUNDS && segments > 0 && segments == added)
+}
+
+/// Back along the straight paths from `st` to `trial`'s end, to fraction `toi` of the step
+/// where they were proven apart; held vertices keep their targets. Velocities are the
+/// step's new displacement over `h`.
+fn cut_back(trial: &mut State, st: &State, pinned: &[bool], toi: f64, h: f64) {
+    for (i, (x, x0)) in trial.x.iter_mut().zip(&st.x).enumerate() {
+        if !pinned[i] {
+            *x = x0 + toi * (*x - x0);
+        }
+    }
+    for ((v, x), x0) in trial.v.iter_mut().zip(&trial.x).zip(&st.x) {
+        *v = (x - x0) / h;
     }
 }
 

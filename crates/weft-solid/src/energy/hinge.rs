@@ -140,8 +140,9 @@ impl Element for Hinge {
             // The PSD surrogate is the Gauss–Newton term 2k ∇θ∇θᵀ: the curvature term
             // 2k d ∇²θ is indefinite for any d ≠ 0 (∇²θ has both signs), so its eigenvalue
             // projection costs a 12×12 eigendecomposition per hinge for a term that vanishes
-            // at rest. Measured on the hanging-cloth example: same Newton iterations, 3× less
-            // assembly time (see BENCHMARKS.md).
+            // at rest. Without it Newton takes the same iterations on the hanging cloth and
+            // assembly is much cheaper (`weft bench solid` measures it; figures in
+            // docs/history/issue-71-comments.md).
             for c in 0..12 {
                 for r in 0..12 {
                     h[(r, c)] = 2.0 * self.k * gt[r] * gt[c];

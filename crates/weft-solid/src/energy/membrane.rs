@@ -250,10 +250,10 @@ impl Element for Membrane {
         // A Hessian at least −budget: the material part is PSD and the geometric part at
         // least Ā λ_min(S) ‖W‖², so S's eigenvalues are clamped at −budget / (Ā ‖W‖²). With
         // the PSD part alone (budget 0) a compressed sheet converges linearly wherever it
-        // rests on a contact (hair_pile's sheet: a step's largest update growing 1.12× an
-        // iteration for 20 iterations); the exact Hessian there makes the contact
-        // step's model indefinite, and ADMM on it diverged (BENCHMARKS.md, twenty-fourth
-        // session).
+        // rests on a contact (a step's largest update not shrinking for many iterations);
+        // the exact Hessian there makes the contact step's model indefinite, and ADMM on it
+        // diverges (`bench/ensemble.py` on hair_pile, whose sheet rests on the hair, measures
+        // it; figures in docs/history/issue-71-comments.md).
         let floor = budget.max(0.0) / (self.area * self.shape_norm2());
         self.eval_geo(x, Geo::Floor(floor), out);
     }
@@ -283,11 +283,12 @@ impl Element for Membrane {
 /// from S by O(d²)), started at each step from the last step's converged stress.
 ///
 /// Only the tension is taken from σ: S's compressive part stays the iterate's, so the
-/// negative curvature where the sheet buckles is the exact Hessian's, as before. Measured
-/// (24 frames; Newton iterations a step, factorizations), primal → σ whole (the inertia
-/// ladder on its Hessian) → tension from σ: cloth_hang 7.96, 520 → 7.02, 617 → 6.17, 376;
-/// cloth_release 4.98, 362 → 3.48, 228 → 3.96, 299; the 64² sheet (`bench/sheet_graph.py`,
-/// 6 frames) 8.00, 70 → 6.83, 63 → 6.67, 60 (BENCHMARKS.md, thirty-second session).
+/// negative curvature where the sheet buckles is the exact Hessian's, as in the primal form.
+/// Taking σ whole (the inertia ladder on its Hessian) also saves iterations against the
+/// primal form, but can need more factorizations; the tension alone saves both on the
+/// hanging cloth and the large sheets. The examples' counts
+/// (`--stats-json`) and `bench/sheet_graph.py` measure it; figures in
+/// docs/history/issue-71-comments.md.
 impl Membrane {
     /// The second Piola–Kirchhoff stress S = C:E at `x`.
     pub fn stress_at(&self, x: &[Vector3<f64>]) -> Matrix2<f64> {
@@ -350,8 +351,9 @@ impl Membrane {
         // first, S ⊗ I, is indefinite when S has a negative eigenvalue (compression).
         // Replacing S by its PSD part S₊ makes the whole PSD in closed form (a 2×2
         // eigenproblem instead of projecting the 6×6 ∂P/∂F; Teran et al. 2005 project the
-        // same quantity). Measured on the hanging cloth: the same Newton iterations as the
-        // nearest-PSD projection of the 6×6 matrix, assembly 25 % faster.
+        // same quantity): the same Newton iterations as the nearest-PSD projection of the
+        // 6×6 matrix, for a cheaper assembly (`weft bench solid` measures it; figures in
+        // docs/history/issue-71-comments.md).
         let s_geo = match geo_mode {
             Geo::Exact => s,
             Geo::Psd => psd_part(&s),

@@ -58,12 +58,13 @@ impl Element for RodStretch {
     }
     fn eval_contact(&self, x: &[Vector3<f64>], _budget: f64, out: &mut Local) {
         // Exact in a contact step's Newton model as well: on projected Hessians a strand
-        // resting on a collider converged linearly (hair_on_head's sliding steps crawled at
-        // residual ratios up to 0.98 an iteration near the tolerance). Measured, 24 frames,
-        // Newton iterations a step: hair_on_head 10.54 → 9.79, hair_pile 10.96 → 10.70.
-        // Membranes keep their exact Hessians there only down to a bound on their negative
-        // curvature (`Membrane::eval_contact`): fully exact ones made cloth_drape's ADMM
-        // models indefinite (20 retried substeps, 4× slower).
+        // resting on a collider converges linearly (hair_on_head's sliding steps crawl near
+        // the tolerance), and the exact ones take fewer Newton iterations on hair_on_head
+        // and hair_pile. Membranes keep their exact Hessians there only down to a bound on
+        // their negative curvature (`Membrane::eval_contact`): fully exact ones make
+        // cloth_drape's ADMM models indefinite, retrying substeps and running several times
+        // slower. `bench/ensemble.py` on those examples measures it; figures in
+        // docs/history/issue-71-comments.md.
         self.eval(x, false, out);
     }
     fn energy(&self, x: &[Vector3<f64>]) -> f64 {
@@ -165,16 +166,17 @@ impl Element for RodBend {
     }
     fn eval(&self, x: &[Vector3<f64>], project: bool, out: &mut Local) {
         // Exact gradient in closed form, and the exact Hessian as its derivative by one
-        // forward dual pass per edge coordinate ([`bend_derivatives`]; it replaced 21
-        // hyper-dual passes of the energy, which replaced one second-order vector-dual
-        // pass: hair 1000 × 32's assembly 46.9 → 19.7 ms an iteration). Projected to PSD for
-        // the solve. (A Gauss–Newton surrogate 2c JᵀJ was cheaper still but needed 2.8× more
-        // Newton iterations on drooping hair, where κb·∇²κb is large.)
+        // forward dual pass per edge coordinate ([`bend_derivatives`]): fewer passes than
+        // hyper-dual passes of the energy or one second-order vector-dual pass, so a cheaper
+        // assembly. Projected to PSD for the solve. (A Gauss–Newton surrogate 2c JᵀJ is
+        // cheaper still but needs many more Newton iterations on drooping hair, where
+        // κb·∇²κb is large; `weft bench solid`'s strands measure both, figures in
+        // docs/history/issue-71-comments.md.)
         // The energy depends on the edges e₀ = x₁ − x₀, e₁ = x₂ − x₁ alone, so it is
         // differentiated over those 6 numbers and mapped back by B (x ↦ (e₀, e₁)):
         // ∇ₓE = Bᵀ∇ₑE, ∇²ₓE = Bᵀ∇²ₑE B. The projection is the 9×9 Hessian's (below):
         // Bᵀ(∇²ₑE)₊B is PSD too but a different (not the nearest) surrogate, with which the
-        // contact solve let a strand of hair_on_head reach 0.12 mm inside the distance kept.
+        // contact solve lets strands of hair_on_head reach inside the distance kept.
         let straight = self.is_straight(x);
         let (p0, p1, p2) = (
             x[self.v[0] as usize],
@@ -311,8 +313,9 @@ fn bend_gradient<S: DualNum<Primitive = f64> + Copy>(
 
 /// [`RodBend`]'s energy, gradient and exact Hessian over its two edges: the closed-form
 /// gradient ([`bend_gradient`]), differentiated by one forward dual pass per edge coordinate
-/// (6 passes, against 21 hyper-dual passes of the energy: measured on hair_swing, rod
-/// bending was 47 % of the run's samples that way).
+/// (6 passes, against 21 hyper-dual passes of the energy, which made rod bending a large
+/// share of a hair run; `weft bench solid`'s strands measure it, figures in
+/// docs/history/issue-71-comments.md).
 fn bend_derivatives(
     bend: &RodBend,
     edges: SVector<f64, 6>,

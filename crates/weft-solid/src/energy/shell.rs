@@ -174,20 +174,7 @@ pub fn shell_bending_clamped(
         .map(|c| (key(c.edge[0], c.edge[1]), c.ghost))
         .collect();
     let n = rest.len();
-    let mut ring: Vec<Vec<usize>> = vec![Vec::new(); n];
-    let mut edges: std::collections::HashMap<(u32, u32), Vec<usize>> = Default::default();
-    for (ti, t) in tris.iter().enumerate() {
-        let p = t.map(|v| rest[v as usize]);
-        let twice_area = (p[1] - p[0]).cross(&(p[2] - p[0])).norm();
-        if twice_area.is_nan() || twice_area <= 0.0 {
-            return Err(ShellError::Degenerate { triangle: ti });
-        }
-        for k in 0..3 {
-            ring[t[k] as usize].push(ti);
-            let (a, b) = (t[k], t[(k + 1) % 3]);
-            edges.entry((a.min(b), a.max(b))).or_default().push(ti);
-        }
-    }
+    let (ring, edges) = rings_and_edges(rest, tris)?;
     let mut triangles = Vec::with_capacity(tris.len());
     // Ghost triangles, in each held vertex's ring: (b, a, ghost) for a clamped edge that
     // its triangle runs a → b, so the ghost's normal continues the triangle's.
@@ -255,38 +242,7 @@ pub fn shell_bending_clamped(
         let mut stencil = vec![v as u32];
         stencil.extend(&nb);
         let local = |u: u32| stencil.iter().position(|&s| s == u).expect("in ring") as u8;
-        let mut w = vec![0.0; nb.len()];
-        let mut area = 0.0;
-        let mut local_faces = Vec::with_capacity(faces.len());
-        for &ti in faces {
-            let t = tris[ti];
-            local_faces.push(t.map(local));
-            // Rotate so t = (v, b, c).
-            let k = t
-                .iter()
-                .position(|&u| u as usize == v)
-                .expect("vertex in its face");
-            let (b, c) = (t[(k + 1) % 3], t[(k + 2) % 3]);
-            let (pv, pb, pc) = (rest[v], rest[b as usize], rest[c as usize]);
-            let cot = |o: Vector3<f64>, p: Vector3<f64>, q: Vector3<f64>| {
-                let (a, b) = (p - o, q - o);
-                a.dot(&b) / a.cross(&b).norm()
-            };
-            let (cot_v, cot_b, cot_c) = (cot(pv, pb, pc), cot(pb, pc, pv), cot(pc, pv, pb));
-            // Edge v–b is opposite c; edge v–c is opposite b.
-            w[local(b) as usize - 1] += 0.5 * cot_c;
-            w[local(c) as usize - 1] += 0.5 * cot_b;
-            // Mixed Voronoi area (Meyer et al. 2003): the Voronoi part of a non-obtuse
-            // triangle, else half (obtuse at v) or a quarter of its area.
-            let ta = 0.5 * (pb - pv).cross(&(pc - pv)).norm();
-            area += if cot_v >= 0.0 && cot_b >= 0.0 && cot_c >= 0.0 {
-                0.125 * ((pb - pv).norm_squared() * cot_c + (pc - pv).norm_squared() * cot_b)
-            } else if cot_v < 0.0 {
-                0.5 * ta
-            } else {
-                0.25 * ta
-            };
-        }
+        let (w, area, local_faces) = cotan_weights(rest, tris, faces, v, &stencil);
         if area.is_nan() || area <= 0.0 {
             return Err(ShellError::Degenerate { triangle: faces[0] });
         }
@@ -320,6 +276,81 @@ pub fn shell_bending_clamped(
         clamped_vertices,
         non_manifold_edges,
     })
+}
+
+/// Each vertex's ring of triangles and each edge's triangles (key: the sorted pair),
+/// refusing a degenerate triangle.
+#[allow(clippy::type_complexity)]
+fn rings_and_edges(
+    rest: &[Vector3<f64>],
+    tris: &[[u32; 3]],
+) -> Result<
+    (
+        Vec<Vec<usize>>,
+        std::collections::HashMap<(u32, u32), Vec<usize>>,
+    ),
+    ShellError,
+> {
+    let mut ring: Vec<Vec<usize>> = vec![Vec::new(); rest.len()];
+    let mut edges: std::collections::HashMap<(u32, u32), Vec<usize>> = Default::default();
+    for (ti, t) in tris.iter().enumerate() {
+        let p = t.map(|v| rest[v as usize]);
+        let twice_area = (p[1] - p[0]).cross(&(p[2] - p[0])).norm();
+        if twice_area.is_nan() || twice_area <= 0.0 {
+            return Err(ShellError::Degenerate { triangle: ti });
+        }
+        for k in 0..3 {
+            ring[t[k] as usize].push(ti);
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            edges.entry((a.min(b), a.max(b))).or_default().push(ti);
+        }
+    }
+    Ok((ring, edges))
+}
+
+/// Vertex `v`'s cotangent weights to its ring (`stencil[1..]`, in that order), its mixed
+/// Voronoi area (Meyer et al. 2003), and its faces in stencil-local indices.
+fn cotan_weights(
+    rest: &[Vector3<f64>],
+    tris: &[[u32; 3]],
+    faces: &[usize],
+    v: usize,
+    stencil: &[u32],
+) -> (Vec<f64>, f64, Vec<[u8; 3]>) {
+    let local = |u: u32| stencil.iter().position(|&s| s == u).expect("in ring") as u8;
+    let mut w = vec![0.0; stencil.len() - 1];
+    let mut area = 0.0;
+    let mut local_faces = Vec::with_capacity(faces.len());
+    for &ti in faces {
+        let t = tris[ti];
+        local_faces.push(t.map(local));
+        // Rotate so t = (v, b, c).
+        let k = t
+            .iter()
+            .position(|&u| u as usize == v)
+            .expect("vertex in its face");
+        let (b, c) = (t[(k + 1) % 3], t[(k + 2) % 3]);
+        let (pv, pb, pc) = (rest[v], rest[b as usize], rest[c as usize]);
+        let cot = |o: Vector3<f64>, p: Vector3<f64>, q: Vector3<f64>| {
+            let (a, b) = (p - o, q - o);
+            a.dot(&b) / a.cross(&b).norm()
+        };
+        let (cot_v, cot_b, cot_c) = (cot(pv, pb, pc), cot(pb, pc, pv), cot(pc, pv, pb));
+        // Edge v–b is opposite c; edge v–c is opposite b.
+        w[local(b) as usize - 1] += 0.5 * cot_c;
+        w[local(c) as usize - 1] += 0.5 * cot_b;
+        // Mixed Voronoi area (Meyer et al. 2003): the Voronoi part of a non-obtuse
+        // triangle, else half (obtuse at v) or a quarter of its area.
+        let ta = 0.5 * (pb - pv).cross(&(pc - pv)).norm();
+        area += if cot_v >= 0.0 && cot_b >= 0.0 && cot_c >= 0.0 {
+            0.125 * ((pb - pv).norm_squared() * cot_c + (pc - pv).norm_squared() * cot_b)
+        } else if cot_v < 0.0 {
+            0.5 * ta
+        } else {
+            0.25 * ta
+        };
+    }
+    (w, area, local_faces)
 }
 
 impl ShellBend {

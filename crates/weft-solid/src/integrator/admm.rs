@@ -19,8 +19,8 @@
 //! of a refactorization whenever it changes. Each dⱼ counts for at least
 //! (1 − CONTACT_CURVATURE) mⱼ/h², what the budgeted Hessians leave of the inertia: a rod's
 //! exact Hessian can take a compressed strand's block below it, to negative, and a negative
-//! ρ̂ made the augmented term concave (hair_pile's ensemble at CONTACT_CURVATURE = 0.5:
-//! iterates at 1e50 m, a failed run; the floor keeps ρ̂ positive).
+//! ρ̂ makes the augmented term concave, so the iterates run away; the floor keeps ρ̂
+//! positive (`contact_step.rs`'s compressed rod on a floor tests it).
 
 use super::contacts::{CONTACT_VERTICES, Contact, ContactSet, ContactStats};
 use super::linear::LinearSystem;
@@ -234,12 +234,12 @@ impl<'a> Admm<'a> {
     /// A contact with no impulse whose point separates at the iterate (or keeps its gap) is
     /// left out of the augmented terms: its ρ/2‖v − v_want‖² would only pull the point
     /// towards its last velocity, a proximal term that makes the whole Newton iteration
-    /// crawl at the rate ρ/(ρ + λ) of the softest mode it touches (measured on
-    /// hair_on_head: residuals falling 0.6 % an iteration, steps ending at the iteration
-    /// limit). It joins back the moment a primal step would move it into its collider
-    /// ([`Admm::rounds`]); after two such returns it stays in until the step ends: freed
-    /// and rejoined at every other iteration, a contact made Newton cycle (the coupled
-    /// hair_underwater at frame 96, a period of six iterations until the iteration limit).
+    /// crawl at the rate ρ/(ρ + λ) of the softest mode it touches (on hair_on_head the
+    /// residuals barely fall, and steps end at the iteration limit). It joins back the moment
+    /// a primal step would move it into its collider ([`Admm::rounds`]); after two such
+    /// returns it stays in until the step ends: freed and rejoined at every other iteration,
+    /// a contact can make Newton cycle until the iteration limit (as in the coupled
+    /// hair_underwater example; figures in docs/history/issue-71-comments.md).
     /// With cohesion the take-off impulse is not zero: those contacts always stay in.
     pub(super) fn split(
         &mut self,
@@ -513,8 +513,9 @@ impl<'a> Admm<'a> {
 /// correction of that factor (Sherman–Morrison–Woodbury): a joining contact adds
 /// ρ/h² (w wᵀ ⊗ I) = Σₐ uₐuₐᵀ to the matrix, uₐ = (√ρ/h) Σⱼ wⱼ e₃ⱼ₊ₐ (three columns), and
 /// (A + UUᵀ)⁻¹b = y − W S⁻¹Uᵀy with y = A⁻¹b, W = A⁻¹U and S = I + UᵀW (small, dense). A join
-/// then costs three solves a contact instead of a factorization: on the cloth pile 2,474 of
-/// 5,881 factorizations were joins.
+/// then costs three solves a contact instead of a factorization, and where contacts leave
+/// and rejoin often (cloth_pile) joins replace a large share of the factorizations (the
+/// example's `--stats-json` counts them; figures in docs/history/issue-71-comments.md).
 #[derive(Default)]
 struct Joined {
     /// Each column of U: its nonzeros (DOF, value).

@@ -21,9 +21,10 @@ const SINGLE_FLUSH: f64 = 1e-30;
 
 /// Runs `f` with the SSE unit flushing subnormal results and inputs to zero (MXCSR's FTZ and
 /// DAZ), as the single-precision factor's entries decay along a separator's fill and would
-/// otherwise turn subnormal: measured at 128² (one factorization of each half, min of 3),
-/// without the flags f32 took 0.9–1.4× f64's time, with them 0.6–0.8×. The flags are the
-/// calling thread's and are restored after; f64 arithmetic elsewhere is untouched.
+/// otherwise turn subnormal: without the flags the f32 factorization is no faster than
+/// f64's, with them clearly faster (`weft bench solid` at 128² measures it; figures in
+/// docs/history/issue-71-comments.md). The flags are the calling thread's and are restored
+/// after; f64 arithmetic elsewhere is untouched.
 #[allow(deprecated)]
 pub(super) fn flushing<R>(f: impl FnOnce() -> R) -> R {
     #[cfg(target_arch = "x86_64")]
@@ -170,9 +171,11 @@ impl Analysis {
         // The lower triangle of the permuted matrix P A Pᵀ, (P A Pᵀ)ᵢⱼ = A(fwd i, fwd j), as a
         // pattern of its own with, per entry, where its value sits in `values`: each
         // factorization gathers it in one pass (faer permuting A itself at every
-        // factorization was 10 % of the hanging cloth's time). Built a vertex (three
-        // columns with the same block rows) at a time, its blocks sorted once: entry by entry
-        // this took 0.45 s of a 0.9 s analysis at 317².
+        // factorization would be a noticeable share of the hanging cloth's time). Built a
+        // vertex (three columns with the same block rows) at a time, its blocks sorted once:
+        // entry by entry the build would be a large share of the analysis at the largest
+        // sizes (`weft bench solid` measures both; figures in
+        // docs/history/issue-71-comments.md).
         let (mut lower_ptr, mut lower_row, mut lower_src) = (
             Vec::with_capacity(dofs + 1),
             Vec::with_capacity(row_idx.len() / 2 + dofs),
@@ -229,7 +232,7 @@ impl Analysis {
             SymmetricOrdering::Identity,
             // Supernodal always: it takes the lower triangle as given (the simplicial one
             // wants the upper and would transpose it each time), and on the hanging cloth
-            // the simplicial factorization was measured 4.6× slower.
+            // the simplicial factorization is several times slower (`weft bench solid`).
             CholeskySymbolicParams {
                 supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
                 ..Default::default()

@@ -1,16 +1,57 @@
-//! Assembly: the objective (the incremental or static potential) and its gradient and
-//! Hessian at x into [`LinearSystem`]'s values, element by element over the pool (the
-//! partition's parts write disjoint entries; every sum is in element order, so the bits are
-//! the same at any thread count), and the diagonal shifts and budgets the Newton loops add.
+//! Assembly: the step's start (x̂ and the first iterate), the objective (the incremental
+//! or static potential) and its gradient and Hessian at x into [`LinearSystem`]'s values,
+//! element by element over the pool (the partition's parts write disjoint entries; every
+//! sum is in element order, so the bits are the same at any thread count), and the
+//! diagonal shifts and budgets the Newton loops add.
 
 use super::linear::{Shared, block_entry};
 use super::{Hessians, Integrator, LOCAL, Mode, NONE, PARALLEL_MIN};
 use crate::energy::{Local, SharedHinges};
-use crate::system::SolidSystem;
+use crate::system::{SolidSystem, State};
 use nalgebra::{Matrix2, Matrix3, Vector3};
 use rayon::prelude::*;
 
 impl Integrator {
+    /// The start of an implicit step from `state` (x⁰): held vertices at their targets, x̂ for
+    /// every vertex, and the first iterate `x` (the guess, else x⁰ + h v⁰).
+    pub(super) fn predict(
+        &mut self,
+        sys: &SolidSystem,
+        state: &State,
+        x: &mut [Vector3<f64>],
+        target: &dyn Fn(usize) -> Vector3<f64>,
+        guess: Option<&[Vector3<f64>]>,
+        h: f64,
+    ) {
+        let x0 = &state.x;
+        for i in 0..self.lin.n {
+            if self.held(i) {
+                x[i] = target(i);
+                self.work.x_hat[i] = x[i];
+            } else {
+                // x̂ = x⁰ + h v⁰ + h² (g + f/m): constant forces act like gravity.
+                self.work.x_hat[i] =
+                    x0[i] + h * state.v[i] + h * h * (sys.gravity + sys.force(i) / sys.mass[i]);
+                x[i] = guess.map_or(x0[i] + h * state.v[i], |g| g[i]);
+            }
+        }
+        if guess.is_none() {
+            // A rigid group's first guess moves it rigidly: by its centroid's velocity.
+            for g in &sys.rigid {
+                let (mut p, mut w) = (Vector3::zeros(), 0.0);
+                for &v in &g.vertices {
+                    p += sys.mass[v as usize] * state.v[v as usize];
+                    w += sys.mass[v as usize];
+                }
+                let vc = p / w;
+                for &v in &g.vertices {
+                    x[v as usize] = x0[v as usize] + h * vc;
+                }
+            }
+        }
+        self.retract(sys, x);
+    }
+
     pub(super) fn objective(
         &self,
         sys: &SolidSystem,

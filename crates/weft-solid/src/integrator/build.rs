@@ -6,10 +6,8 @@
 
 use super::factor::Factor;
 use super::linear::LinearSystem;
-use super::{Directions, Hooks, Modes, Sliders, Work};
-use super::{
-    Integrator, LOCAL, NONE, admm, correction, elimination, one_ring, partition, rigid, sliding,
-};
+use super::{Directions, Hooks, Modes, Route, Sliders, Work};
+use super::{Integrator, LOCAL, NONE, admm, correction, elimination, one_ring, rigid, sliding};
 use crate::energy::{Local, SharedHinges};
 use crate::settings::StepError;
 use crate::system::SolidSystem;
@@ -91,217 +89,42 @@ impl Integrator {
     ) -> Result<Self, StepError> {
         // What the steps run on, made here (a solver node's setup frame) rather than in the
         // first step: rayon's global pool starts its workers on first use, and this thread's
-        // element scratch is zeroed page by page on first touch. Measured on the 4² square of
-        // `bench/peers` (linearized, one substep): its first step 280–520 µs → about 145 µs,
-        // its later ones about 40 µs.
+        // element scratch is zeroed page by page on first touch, costs that would otherwise
+        // make a small system's first step several times its later ones (`bench/peers`' 4²
+        // square measures it; figures in docs/history/issue-71-comments.md).
         let _ = rayon::current_num_threads();
         LOCAL.with(|_| ());
         if let Some(limit) = room {
-            // The contacts' blocks between solids, in both triangles.
-            let mut pairs = 2 * extra.len() as u64;
-            sys.elements.for_each(|e| {
-                let k = e.vertices().len() as u64;
-                pairs = pairs.saturating_add(k * k);
-            });
-            // Per stencil pair at most: a neighbour entry and a slot (u32 each), and a 3×3
-            // block of row indices and values (8 bytes each); plus per vertex its buffers.
-            let need = pairs
-                .saturating_mul(8 + 9 * 16)
-                .saturating_add((sys.mass.len() as u64).saturating_mul(256));
-            if need > limit {
-                return Err(crate::settings::too_large(
-                    "the system matrix",
-                    need,
-                    limit,
-                    crate::settings::FEWER_VERTICES,
-                ));
-            }
+            check_pattern_room(sys, &extra, limit)?;
         }
         let n = sys.mass.len();
-        let mut free_of = vec![NONE; n];
-        let member = {
-            let mut m = vec![false; n];
-            for g in &sys.rigid {
-                for &v in &g.vertices {
-                    if let Some(s) = m.get_mut(v as usize) {
-                        *s = true;
-                    }
-                }
-            }
-            m
-        };
-        let mut n_free = 0usize;
-        for (i, f) in free_of.iter_mut().enumerate() {
-            if !sys.pinned.get(i).copied().unwrap_or(false) && !member[i] {
-                *f = n_free as u32;
-                n_free += 1;
-            }
-        }
-        let n_vertices = n_free;
+        let (mut free_of, n_vertices) = number_free(sys);
         // Rigid groups: two nodes each after the free vertices (`rigid.rs`).
-        let mut groups = rigid::Groups::new(sys, &mut free_of, n_free);
-        n_free += 2 * sys.rigid.len();
-        // The nodes a vertex moves with: its own, its group's two, or none.
-        let nodes_of = |v: u32| -> ([u32; 2], usize) {
-            let f = free_of.get(v as usize).copied().unwrap_or(NONE);
-            if f != NONE {
-                return ([f, NONE], 1);
-            }
-            match groups.of.get(v as usize) {
-                Some(&g) if g != NONE => {
-                    let t = groups.node[g as usize];
-                    ([t, t + 1], 2)
-                }
-                _ => ([NONE; 2], 0),
-            }
-        };
-        // Block neighbours of each node (itself included), sorted.
-        let mut nbrs: Vec<Vec<u32>> = (0..n_free as u32).map(|j| vec![j]).collect();
-        for &t in &groups.node {
-            nbrs[t as usize].push(t + 1);
-            nbrs[t as usize + 1].push(t);
-        }
-        sys.elements.for_each(|e| {
-            for &a in e.vertices() {
-                let (na, ka) = nodes_of(a);
-                for &b in e.vertices() {
-                    let (nb, kb) = nodes_of(b);
-                    for &fa in &na[..ka] {
-                        for &fb in &nb[..kb] {
-                            nbrs[fb as usize].push(fa);
-                        }
-                    }
-                }
-            }
-        });
-        for &(a, b) in &extra {
-            if let (Some(la), true) = (nbrs.get_mut(a as usize), (b as usize) < n_free) {
-                la.push(b);
-                nbrs[b as usize].push(a);
-            }
-        }
-        for l in &mut nbrs {
-            l.sort_unstable();
-            l.dedup();
-        }
-        let dofs = 3 * n_free;
-        let mut col_ptr = Vec::with_capacity(dofs + 1);
-        let mut row_idx = Vec::new();
-        col_ptr.push(0);
-        for l in &nbrs {
-            for _cc in 0..3 {
-                for &i in l {
-                    for rr in 0..3 {
-                        row_idx.push(3 * i as usize + rr);
-                    }
-                }
-                col_ptr.push(row_idx.len());
-            }
-        }
-        let mut slots = Vec::new();
-        let mut slot_offset = Vec::with_capacity(sys.elements.len());
-        let mut ei = 0u32;
-        sys.elements.for_each(|e| {
-            slot_offset.push(slots.len());
-            let v = e.vertices();
-            let grouped = v
-                .iter()
-                .any(|&a| groups.of.get(a as usize).is_some_and(|&g| g != NONE));
-            if grouped {
-                groups.elements.push(ei);
-            }
-            ei += 1;
-            for &b in v {
-                for &a in v {
-                    let (fa, fb) = (
-                        free_of.get(a as usize).copied().unwrap_or(NONE),
-                        free_of.get(b as usize).copied().unwrap_or(NONE),
-                    );
-                    // Row node fa, column node fb: the lower triangle only.
-                    slots.push(if fa != NONE && fb != NONE && fa >= fb && !grouped {
-                        nbrs[fb as usize]
-                            .binary_search(&fa)
-                            .expect("pattern holds every pair") as u32
-                    } else {
-                        NONE
-                    });
-                }
-            }
-        });
-        let diag_slot: Vec<u32> = (0..n_free)
-            .map(|j| nbrs[j].binary_search(&(j as u32)).expect("diagonal") as u32)
-            .collect();
-        let upper_start = std::iter::once(0)
-            .chain(diag_slot.iter().scan(0, |acc, &d| {
-                *acc += d as usize;
-                Some(*acc)
-            }))
-            .take(n_free)
-            .collect();
-        let upper_src = (0..n_free)
-            .flat_map(|j| {
-                let nbrs = &nbrs;
-                nbrs[j][..diag_slot[j] as usize].iter().map(move |&i| {
-                    nbrs[i as usize]
-                        .binary_search(&(j as u32))
-                        .expect("symmetric pattern") as u32
-                })
-            })
-            .collect();
-        let at = free_layout(sys, &free_of, n_vertices);
+        let mut groups = rigid::Groups::new(sys, &mut free_of, n_vertices);
+        let n_free = n_vertices + 2 * sys.rigid.len();
+        let (lin, nbrs) = LinearSystem::new(sys, free_of, n_free, &mut groups, extra);
+        let at = free_layout(sys, &lin.free_of, n_vertices);
         // Not split with rigid groups (their nodes couple every member).
         let may_split = sys.rigid.is_empty() && !whole_only;
-        // Held beside the factor: the pattern's indices and values (16 bytes an entry),
-        // its slots and neighbour lists, and per vertex and per element the work buffers
-        // built after it (trial positions, the assembly's partition, the shared hinges,
-        // the length correction: 512 bytes each bounds them; measured under a tight
-        // `ulimit -v`, the hinges' table was what failed without them).
-        let held = (16 * row_idx.len() + 8 * col_ptr.len() + 4 * (slots.len() + dofs)) as u64
-            + nbrs.iter().map(|l| 24 + 4 * l.len() as u64).sum::<u64>()
-            + 512 * (n + sys.elements.len()) as u64;
-        let factor = Factor::new(&nbrs, &col_ptr, &row_idx, &at, may_split, (room, held))?;
-        // Which elements may be assembled concurrently (`partition.rs`), by their free
-        // vertices only (pinned ones are never written).
-        let stencils: partition::Stencils = (0..sys.elements.len())
-            .filter(|&ei| groups.elements.binary_search(&(ei as u32)).is_err())
-            .map(|ei| {
-                let free = sys
-                    .elements
-                    .get(ei)
-                    .vertices()
-                    .iter()
-                    .copied()
-                    .filter(|&v| free_of.get(v as usize).is_some_and(|&f| f != NONE))
-                    .collect();
-                (ei as u32, free)
-            })
-            .collect();
-        let parts = partition::partition(stencils, n, &sys.layout);
-        let values = vec![0.0; row_idx.len()];
-        let per_element = RefCell::new(vec![0.0; slot_offset.len()]);
+        let held = lin.held_bytes(&nbrs, sys.elements.len());
+        let factor = Factor::new(
+            &nbrs,
+            &lin.col_ptr,
+            &lin.row_idx,
+            &at,
+            may_split,
+            (room, held),
+        )?;
+        let dofs = 3 * n_free;
+        let per_element = RefCell::new(vec![0.0; lin.slot_offset.len()]);
         Ok(Integrator {
-            lin: LinearSystem {
-                n,
-                free_of,
-                n_free,
-                col_ptr,
-                row_idx,
-                values,
-                slots,
-                diag_slot,
-                upper_src,
-                upper_start,
-                slot_offset,
-                parts,
-                extra,
-            },
+            lin,
             dirs: Directions {
                 factor,
                 one_ring: None,
                 single: None,
                 one_ring_tried: false,
-                pcg_single: false,
-                pcg: false,
+                route: Route::Factor,
             },
             work: Work {
                 grad: vec![0.0; dofs],
@@ -458,6 +281,58 @@ impl Integrator {
             max_bytes,
         )
     }
+}
+
+/// Refuses, before allocating it, a pattern larger than `limit` bytes: bounded by the
+/// elements' stencils squared and the contacts' blocks between solids.
+fn check_pattern_room(
+    sys: &SolidSystem,
+    extra: &[(u32, u32)],
+    limit: u64,
+) -> Result<(), StepError> {
+    // The contacts' blocks between solids, in both triangles.
+    let mut pairs = 2 * extra.len() as u64;
+    sys.elements.for_each(|e| {
+        let k = e.vertices().len() as u64;
+        pairs = pairs.saturating_add(k * k);
+    });
+    // Per stencil pair at most: a neighbour entry and a slot (u32 each), and a 3×3
+    // block of row indices and values (8 bytes each); plus per vertex its buffers.
+    let need = pairs
+        .saturating_mul(8 + 9 * 16)
+        .saturating_add((sys.mass.len() as u64).saturating_mul(256));
+    if need > limit {
+        return Err(crate::settings::too_large(
+            "the system matrix",
+            need,
+            limit,
+            crate::settings::FEWER_VERTICES,
+        ));
+    }
+    Ok(())
+}
+
+/// Each vertex's free node (`NONE` for a pinned vertex or a rigid group's member), in
+/// vertex order, and how many free vertices there are.
+fn number_free(sys: &SolidSystem) -> (Vec<u32>, usize) {
+    let n = sys.mass.len();
+    let mut free_of = vec![NONE; n];
+    let mut member = vec![false; n];
+    for g in &sys.rigid {
+        for &v in &g.vertices {
+            if let Some(s) = member.get_mut(v as usize) {
+                *s = true;
+            }
+        }
+    }
+    let mut n_free = 0usize;
+    for (i, f) in free_of.iter_mut().enumerate() {
+        if !sys.pinned.get(i).copied().unwrap_or(false) && !member[i] {
+            *f = n_free as u32;
+            n_free += 1;
+        }
+    }
+    (free_of, n_free)
 }
 
 /// Where the first `vertices` free nodes sit (`free_of`: each vertex's node), from the

@@ -20,27 +20,8 @@ use crate::system::{SolidSystem, State};
 use nalgebra::Vector3;
 
 impl Integrator {
-    /// [`Integrator::step`] with `set.contacts`: implicit Euler whose end-of-step velocities
-    /// obey Signorini–Coulomb at every contact. ADMM stops when the split's primal and dual
-    /// residuals are below `settings.tolerance` [m/s], within `set.max_admm` iterations a
-    /// Newton iteration; each Newton update is line-searched on the primal objective. With
-    /// no contacts, a Newton method's step is [`Integrator::step_from`]'s (from the guess).
-    pub fn step_contacts(
-        &mut self,
-        sys: &SolidSystem,
-        state: &mut State,
-        pinned_to: Option<&[Vector3<f64>]>,
-        h: f64,
-        settings: &Settings,
-        set: ContactSet<'_>,
-    ) -> Result<(StepStats, ContactStats), StepError> {
-        // On a worker of the thread pool, for the assembly's fork–joins (see `in_pool`).
-        super::in_pool(self.threaded(), || {
-            self.step_contacts_here(sys, state, pinned_to, h, settings, set)
-        })
-    }
-
-    fn step_contacts_here(
+    /// [`Integrator::step_contacts`]'s Newton step, on a worker of the thread pool.
+    pub(super) fn step_contacts_here(
         &mut self,
         sys: &SolidSystem,
         state: &mut State,
@@ -59,8 +40,8 @@ impl Integrator {
         // No contacts (none detected ahead; the exact check may still add some, and the
         // step is then solved again from this answer): the contact-free Newton, whose exact
         // Hessians (inertia added where indefinite) converge quadratically where ADMM's
-        // projected ones converge linearly (4–5 iterations a step on hair_on_head's strands
-        // before they reach the head, against 7–8).
+        // projected ones converge linearly (hair_on_head's strands take fewer iterations a
+        // step before they reach the head; figures in docs/history/issue-71-comments.md).
         if contacts.is_empty()
             && matches!(settings.method, Method::Newton | Method::ProjectedNewton)
         {
@@ -121,10 +102,10 @@ impl Integrator {
             // The first model's membranes read the tension of the stress at x⁰ (the last
             // step's converged one), not the first guess's overshoot (see
             // `Membrane::eval_contact_carried`); later models read the iterate's. Carried
-            // through the iterations as in the contact-free loop, cloth_pile retried a
-            // substep in every run of an ensemble (a contact step's Newton loop crawling past
-            // 100 iterations). Set and cleared around the one assembly, so no other solve
-            // reads it.
+            // through the iterations as in the contact-free loop, the stress makes cloth_pile's
+            // contact steps crawl and retry substeps (`bench/ensemble.py` measures it; figures
+            // in docs/history/issue-71-comments.md). Set and cleared around the one assembly,
+            // so no other solve reads it.
             if it == 0 {
                 self.start_carried(sys, &x0, settings.method == Method::Newton);
                 self.start_slide_forces(sys, true);
@@ -952,8 +933,8 @@ mod tests {
     /// lying on a floor y = 0, both vertices touching it, gravity −y: the exact stretch
     /// Hessian's transverse term k s/l = −10⁵ N/m outweighs the inertia m/h² = 10 N/m, so
     /// the contact point's diagonal block along the normal is negative. Its ρ̂ must still
-    /// be positive (the inertia floor): with ρ̂ < 0 the augmented term was concave and the
-    /// iterates left for 1e50 m (hair_pile at CONTACT_CURVATURE = 0.5, frame 11). Each
+    /// be positive (the inertia floor): with ρ̂ < 0 the augmented term is concave and the
+    /// iterates run away (figures in docs/history/issue-71-comments.md). Each
     /// step converges, the rod opens symmetrically along x (its midpoint held to 1e-12 m)
     /// and stays on the floor (1e-9 m).
     #[test]

@@ -132,26 +132,27 @@ pub struct ContactSet<'a> {
     /// extrapolated along a geometric tail (`tail.rs`) moves no point (rigid groups'
     /// members included; a slider's projection back onto its rail excepted) more than half
     /// of it beyond the full step, which reduces the chance of carrying a point through a
-    /// surface the step's contacts do not hold (unbounded, hair_pile's ensemble met 17
-    /// pass-throughs where 1 was met without extrapolation; bounded, 5). 0 (or NaN): no
-    /// extrapolation; ∞ (no pairs): bounded only by the stretch's cap of 20.
+    /// surface the step's contacts do not hold (unbounded, extrapolation makes such
+    /// pass-throughs far more frequent on hair_pile; bounded, only a few more than without
+    /// it: `bench/ensemble.py` measures it, figures in docs/history/issue-71-comments.md).
+    /// 0 (or NaN): no extrapolation; ∞ (no pairs): bounded only by the stretch's cap of 20.
     pub reach: f64,
 }
 
 /// Newton iterations in a row with steps below the tolerance and ADMM not converged after
-/// which a solve that may give up ([`ContactSet::give_up`]) does. Traced on hair_pile: such
-/// a solve's Newton steps stayed below the tolerance from its 23rd iteration to its 100th
-/// while ADMM ended 0.21 m/s off the laws each time (contacts that contradict each other);
-/// the step was then retried in halves, as it is now 67 iterations sooner.
+/// which a solve that may give up ([`ContactSet::give_up`]) does. Such a solve has nothing
+/// left for Newton to move while ADMM stays off the laws each time (contacts that
+/// contradict each other, as traced on hair_pile): waiting for the iteration limit only
+/// delays the retry in halves it ends in (figures in docs/history/issue-71-comments.md).
 pub(crate) const STALLED: usize = 10;
 
 /// How many times its first step a contact solve's Newton step may be before a solve that
-/// may give up ([`ContactSet::give_up`]) calls it diverged. Measured over hair_pile,
-/// hair_on_head, cloth_drape and cloth_pile (thirty-third session): solves that converged
-/// took steps up to 8.1e4 times their first (hair_on_head, one step at its third iteration),
-/// and those that diverged passed 1e11 times it within a few iterations, then wandered at
-/// 1e21–1e24 m/s until the iteration limit (ADMM ending 20–170 m/s off its laws and the line
-/// search accepting steps towards its targets), only then retried smaller.
+/// may give up ([`ContactSet::give_up`]) calls it diverged: far above the growth of the
+/// solves that converge, far below what diverging ones reach within a few iterations, after
+/// which they wander until the iteration limit (ADMM far off its laws and the line search
+/// accepting steps towards its targets), only then retried smaller. `bench/ensemble.py` on
+/// hair_pile, hair_on_head, cloth_drape and cloth_pile measures both; figures in
+/// docs/history/issue-71-comments.md.
 pub(crate) const DIVERGED: f64 = 1e7;
 
 /// What the contact solve did over a step.

@@ -7,10 +7,10 @@
 //! κ D (D = diag(mᵢ/h²)) until H + κD factors, and the step follows −(H + κD)⁻¹ g. Along
 //! an eigenvector v of H's most negative eigenvalue λ (relative to D) that step multiplies
 //! the distance from the saddle by κ / (κ + λ) an iteration. Where a sheet is about to
-//! buckle λ is tiny: the 48² hanging sheet of `bench/sheet_graph.py`, its fourth frame at a
-//! tolerance of 1e-5 m/s, reached λ ≈ −1e-4 with κ at the ladder's floor 0.01, and its
-//! residuals grew from 4.7e-5 to 6.2e-5 m/s over 45 iterations (0.6 % an iteration) until
-//! the step ran out of its 200 iterations and was halved. Every other mode converges as
+//! buckle λ is tiny, even against κ at the ladder's floor, so that factor is barely above
+//! 1: the residuals grow slowly for tens of iterations until the step runs out of
+//! iterations and is halved (`bench/sheet_graph.py`'s sheets show it; figures in
+//! docs/history/issue-71-comments.md). Every other mode converges as
 //! κ / (μ + κ) for its eigenvalue μ, so a shift large enough for the negative mode also
 //! slows the soft positive ones.
 //!
@@ -27,10 +27,11 @@
 //! Limits: a move needs a shifted iteration that does not end the step, so a saddle reached
 //! exactly (a zero gradient) or within the tolerance is not left; and a move is taken on
 //! any decrease of the objective, even one below the line search's threshold (its
-//! `unresolvable` test, far coarser than the objective's own rounding): at 1e-7 m/s on the
-//! 64² sheet such moves and the whole Newton steps after them cycle along a mode flatter
-//! than that threshold, and tightening it cost more iterations at the default tolerance
-//! than it saved (BENCHMARKS.md, thirty-eighth and thirty-ninth sessions). Not for rigid
+//! `unresolvable` test, far coarser than the objective's own rounding): at tolerances far
+//! below the default, on large sheets, such moves and the whole Newton steps after them
+//! cycle along a mode flatter than that threshold, and tightening it costs more iterations
+//! at the default tolerance than it saves (`bench/sheet_graph.py` measures it; figures in
+//! docs/history/issue-71-comments.md). Not for rigid
 //! groups' or sliders' nodes (their moves go through `move_members` and `retract`; their
 //! steps keep the ladder alone), nor for the contact step (its model is kept convex by its
 //! budget, `fill_budget`).
@@ -39,13 +40,12 @@ use super::{Integrator, Mode, NONE, one_ring};
 use crate::system::SolidSystem;
 use nalgebra::Vector3;
 
-/// Inverse iterations. Measured (Newton iterations and factorizations summed over
-/// cloth_hang at 2 and 1 substeps for 24 frames and at 4 for 12, and the sheets of 24² to
-/// 80², 8 frames each): the ladder alone 960, 1,422; 2 sweeps 963, 1,399; 3 sweeps 935,
-/// 1,320; 4 sweeps 949, 1,342; 8 sweeps 940, 1,344; without the start's perturbation up
-/// to 16 sweeps stopping once the Rayleigh quotient settles to 1 % 960, 1,370. From 3
-/// sweeps on the sums differ by less than single sizes move with the sweeps (buckling is
-/// chaotic in these counts); 4 keep a sweep of margin for a mode less well separated. Each
+/// Inverse iterations. Summed over cloth_hang at several substeps and the sheets of
+/// `bench/sheet_graph.py`, the Newton iterations and factorizations gain little from two
+/// sweeps over the ladder alone, and from 3 sweeps on they differ by less than single sizes
+/// move with the sweeps (buckling is chaotic in these counts); 4 keep a sweep of margin for
+/// a mode less well separated. Stopping once the Rayleigh quotient settles, without the
+/// start's perturbation, gains nothing (figures in docs/history/issue-71-comments.md). Each
 /// sweep is one solve with the factor at hand (at 24², an eighth of a factorization).
 const SWEEPS: usize = 4;
 

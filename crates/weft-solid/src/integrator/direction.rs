@@ -2,7 +2,7 @@
 //! not positive definite, `shift_ladder`), or conjugate gradients preconditioned by the
 //! one-ring's or the single-precision factor, and the solves with the factor kept.
 
-use super::{Hessians, Integrator, Mode, one_ring, shift_ladder};
+use super::{Hessians, Integrator, Mode, Route, one_ring, shift_ladder};
 use crate::settings::{StepError, StepStats};
 use crate::system::SolidSystem;
 use nalgebra::Vector3;
@@ -10,7 +10,7 @@ use std::time::Instant;
 
 impl Integrator {
     /// `dir` ← −H⁻¹ `grad` with the last factor, or by conjugate gradients preconditioned
-    /// with the one-ring factor while `pcg` is set: false when they met a direction of
+    /// with the one-ring factor on a preconditioned route: false when they met a direction of
     /// non-positive curvature (H is not positive definite). Should they not converge, the
     /// rest of the step factors H itself, starting with this direction.
     pub(super) fn solve_direction(&mut self, stats: &mut StepStats) -> bool {
@@ -29,7 +29,7 @@ impl Integrator {
                 one_ring::Outcome::Converged => return true,
                 one_ring::Outcome::Indefinite => return false,
                 one_ring::Outcome::Failed => {
-                    self.dirs.pcg = false;
+                    self.dirs.route = Route::Factor;
                     if !self.try_factor(stats) {
                         return false;
                     }
@@ -81,7 +81,7 @@ impl Integrator {
         if !self.solve_direction(stats) {
             // Conjugate gradients met non-positive curvature in a matrix meant to be
             // positive definite (projected): H's own factor decides, its shift grown as needed.
-            self.dirs.pcg = false;
+            self.dirs.route = Route::Factor;
             self.factor(stats, 0.0)?;
             self.solve_direction(stats);
         }
@@ -151,7 +151,7 @@ impl Integrator {
         ok
     }
 
-    /// While `pcg` is set, factors the one-ring preconditioner from `values`: whether it
+    /// On a preconditioned route, factors its preconditioner from `values`: whether it
     /// was positive definite, or `None` when H is to be factored instead (no preconditioner,
     /// or it declined: then the rest of the step factors H).
     pub(super) fn factor_preconditioner(&mut self, certify: bool) -> Option<bool> {
@@ -159,12 +159,14 @@ impl Integrator {
         match pre?.factor(&self.lin.values, certify) {
             one_ring::Factored::Positive => Some(true),
             one_ring::Factored::NotPositive => Some(false),
-            one_ring::Factored::Declined if !self.dirs.pcg_single && self.dirs.single.is_some() => {
-                self.dirs.pcg_single = true;
+            one_ring::Factored::Declined
+                if self.dirs.route == Route::OneRing && self.dirs.single.is_some() =>
+            {
+                self.dirs.route = Route::Single;
                 self.factor_preconditioner(certify)
             }
             one_ring::Factored::Declined => {
-                self.dirs.pcg = false;
+                self.dirs.route = Route::Factor;
                 None
             }
         }

@@ -8,11 +8,10 @@
 //! Why: the stopping test reads the largest vertex correction (‖Δx‖∞/h), and on a hanging
 //! cloth after the first iteration that largest one sits on one to a handful of vertices —
 //! next to a pinned corner, on the taut edge between the pins, or where a fold turns —
-//! while the median vertex's correction is 40–1,400× smaller and falls faster (cloth_hang,
-//! traced: largest 1.1e-1, 4.6e-2, 2.2e-2, 1.4e-2, 2.2e-3 m/s, the last three on one
-//! vertex, against a median of 2.7e-3, 2.5e-4, 5.7e-5, 4.1e-5, 1.6e-6). Their local energy
-//! is the most nonlinear part of the scene, and the global Newton step, linear in all
-//! vertices at once, covers only part of their way each iteration. Solving the local
+//! while the median vertex's correction is one to three orders of magnitude smaller and
+//! falls faster (traced on cloth_hang; figures in docs/history/issue-71-comments.md). Their
+//! local energy is the most nonlinear part of the scene, and the global Newton step, linear
+//! in all vertices at once, covers only part of their way each iteration. Solving the local
 //! problem (each patch's own Newton on its vertices with the inertia and every element
 //! touching them) takes them the rest of the way for the cost of a few dense 57 × 57
 //! solves, and the next global iteration sees a nearly linear problem again.
@@ -29,22 +28,19 @@
 //! tests still read the global Newton correction, measured before the patches move: its
 //! rate's test (`rate.rs`) then reads the contraction of Newton and elimination together,
 //! and a loop it ends keeps that iteration's patch moves, which its estimate does not
-//! measure (traced: where the rate ended a loop, the next Newton correction was below the
-//! tolerance in 31 of 32 loops, as in 27 of 28 without the elimination). Cloth only ([`Integrator::eliminates`]:
-//! on hair it did not pay), not for rigid groups' or sliders' nodes (their moves go through
-//! `move_members` and `retract`), nor in the contact step (a local move would not see the
-//! contacts).
+//! measure (traced: where the rate ends a loop, the next Newton correction is nearly always
+//! below the tolerance, with the elimination as without it). Cloth only
+//! ([`Integrator::eliminates`]: on hair it does not pay), not for rigid groups' or sliders'
+//! nodes (their moves go through `move_members` and `retract`), nor in the contact step (a
+//! local move would not see the contacts).
 //!
-//! Measured (Newton iterations a step, factorizations; BENCHMARKS.md, fortieth session):
-//! cloth_hang (24 frames) 6.02, 366 → 4.71, 279; its largest distance from a run at
-//! 1e-7 m/s, in the frames where it buckles, 7.4e-5 → 2.0e-4 m at the example's 1e-4 m/s,
-//! and 6.0e-5 m at 3e-5 m/s, where it takes 4.98 iterations a step: nearer the converged
-//! run in fewer iterations than before. At one substep 225 → 207 iterations for 24 steps,
-//! 420 → 355 factorizations; the ten cases of the thirty-eighth session 949, 1,342 → 883,
-//! 1,223. The sheets of `bench/sheet_graph.py`, whose slow part is a band of tens to
-//! hundreds of vertices along the edge between the pins and the folds rather than a
-//! handful, gain nothing (8 frames: within 2 iterations, except 40², 52 → 62; 128², 6
-//! frames, 33 → 35; 317², 2 frames, 11 → 11).
+//! On cloth_hang it cuts the Newton iterations and factorizations a step, at one substep as
+//! at two; at the example's tolerance it ends a little farther from the converged run where
+//! the cloth buckles, but at a tighter one that costs it no more iterations than the plain
+//! loop took, nearer. The sheets of `bench/sheet_graph.py`, whose slow part is a band of tens
+//! to hundreds of vertices along the edge between the pins and the folds rather than a
+//! handful, gain nothing. The examples' `--stats-json` and `bench/sheet_graph.py` measure
+//! it; figures in docs/history/issue-71-comments.md.
 
 use super::{Integrator, NONE, shift_ladder};
 use crate::energy::Local;
@@ -248,9 +244,9 @@ fn solve(l: &[f64], n: usize, ld: usize, x: &mut [f64]) {
 
 impl Integrator {
     /// Whether this system's Newton steps solve lagging patches: cloth (membranes, no rods,
-    /// the scenes it was measured on; hair_pile's strands over 8 rounding-level
-    /// perturbations went 7.91 → 8.38 Newton iterations a step with it, hair_on_head 8.65 →
-    /// 8.63, hair_swing 5.13 → 5.00), and no rigid groups or sliders.
+    /// the scenes it was measured on: on hair it gains little or costs iterations, as
+    /// `bench/ensemble.py` on hair_pile and the hair examples' counts show; figures in
+    /// docs/history/issue-71-comments.md), and no rigid groups or sliders.
     pub(super) fn eliminates(&self, sys: &SolidSystem) -> bool {
         let e = &sys.elements;
         !e.membranes.is_empty()

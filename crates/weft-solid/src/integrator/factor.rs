@@ -6,10 +6,11 @@
 //! ([`Factor::single_twin`]).
 //!
 //! Each factorization is sequential (`Par::Seq` throughout): faer's parallel supernodal
-//! Cholesky changes its reduction order with the thread count (measured: a 48×48 cloth
-//! differed in the last bits between 1 and 2 threads), and results must be bit-identical at
-//! any count; at 128² it was also slower (31 → 44 s for two frames' factorizations). Threads
-//! go to assembly and to the split's two halves.
+//! Cholesky changes its reduction order with the thread count (a cloth's factor then
+//! differs in the last bits between 1 and 2 threads), and results must be bit-identical at
+//! any count; on large sheets it is also slower here (`weft bench solid` measures it;
+//! figures in docs/history/issue-71-comments.md). Threads go to assembly and to the split's
+//! two halves.
 
 use super::analysis::Analysis;
 use super::{order, solve, split, value_index};
@@ -22,19 +23,18 @@ use std::sync::Arc;
 
 /// Factors cheaper than this keep minimum degree without trying nested dissection: there the
 /// flop count does not predict the time (dissection's leaves make many small supernodes),
-/// and hair, whose chains minimum degree orders without fill, stays as it was. Measured on
-/// the hanging cloth, time per factorization with dissection against minimum degree: 32²
-/// vertices (9.4e7 flops) +10 %, 40² +18 %, 48² (4.3e8) −3 %, 64² (1.5e9) −22 %, 128²
-/// −28 %, 256² −61 %.
+/// and hair, whose chains minimum degree orders without fill, stays as it was. On the
+/// hanging cloth, dissection's factorization is slower than minimum degree's below about
+/// this count and ever faster above it (`weft bench solid` measures it; figures in
+/// docs/history/issue-71-comments.md).
 pub(super) const DISSECTION_MIN_FLOPS: f64 = 5e8;
 
 /// Factorizations from this many flops are tried split in two halves factored concurrently
 /// (`split.rs`), and kept when the larger half and the separator cost less than
-/// [`SPLIT_GAIN`] of the whole. Measured on the hanging cloth (2 threads, fastest of 20
-/// factorizations of one matrix, whole → split): 16² (5.9e6 flops) 0.43 → 0.36 ms, but its
-/// runs no faster (solver 0.25 → 0.28 s for 24 frames); 20² (1.4e7) 0.89 → 0.62 ms; 24²
-/// (2.9e7) 1.65 → 1.04 ms (`graphs/cloth_hang.json`: 0.85 of the time, farm-bench A/B);
-/// 32² 4.1 → 2.4 ms; 48² 10.8 → 6.7 ms; 64² 16.7 → 13.3 ms; 128² 267 → 165 ms.
+/// [`SPLIT_GAIN`] of the whole. On the hanging cloth with 2 threads, below this count a
+/// split factorization can still be faster on its own while the run as a whole is not;
+/// from it up the split pays at every size (`weft bench solid` and `graphs/cloth_hang.json`
+/// measure it; figures in docs/history/issue-71-comments.md).
 const SPLIT_MIN_FLOPS: f64 = 1e7;
 const SPLIT_GAIN: f64 = 0.75;
 
@@ -97,10 +97,10 @@ struct Single {
 /// most [`DENSE_FLOPS`] times the sparse one's flops are factored dense: on a small sheet
 /// with shell bending (every vertex coupled to its two-ring, so a 5 × 5 grid's matrix is
 /// nearly full) the supernodal factorization's updates between its many small supernodes
-/// cost more than the fill they skip. Measured per factorization, sparse → dense: the 4²
-/// square of `bench/peers` (69 unknowns, dense 1.9× the sparse flops) 17 → 10 µs; the
-/// 10-segment ribbon (54, 3.4×) 5.2 → 5.7 µs, the 10-segment cantilever (90, 5×) 18 → 20
-/// µs, the 6² square (141, 3.7×) 20 → 54 µs: those stay sparse.
+/// cost more than the fill they skip. The 4² square of `bench/peers` (dense under twice the
+/// sparse flops) factors faster dense; the 10-segment ribbon and cantilever and the 6²
+/// square, at several times the sparse flops, do not, and stay sparse (figures in
+/// docs/history/issue-71-comments.md).
 const DENSE_MAX: usize = 192;
 const DENSE_FLOPS: f64 = 2.5;
 
@@ -136,7 +136,7 @@ impl Factor {
         // its scratch, and per entry of the lower triangle (at most half the pattern's
         // entries and the diagonal) 64 bytes: the kept analysis' row and gather indices
         // (16), its transpose for faer's symbolic analysis (8) and the symbolic structure
-        // (at most 8: it was 0.18 of that on a 200² sheet), and as much again for the
+        // (at most 8, well above what a sheet's structure takes), and as much again for the
         // second analysis alive beside it (nested dissection's, or the split's two halves).
         let dofs = col_ptr.len() - 1;
         let lower = (row_idx.len() / 2 + dofs) as u64;
@@ -260,14 +260,15 @@ impl Factor {
     }
 
     /// A twin of this factor, approximate: the same analyses (shared, not redone: ordering
-    /// and symbolic analysis took 2.6 s at 317²), its split's halves factored in single
-    /// precision, of the matrix scaled to a unit diagonal, so a solve with it is A⁻¹'s to
-    /// about f32's precision times A's conditioning — a preconditioner for conjugate
+    /// and symbolic analysis are costly at the largest sizes), its split's halves factored
+    /// in single precision, of the matrix scaled to a unit diagonal, so a solve with it is
+    /// A⁻¹'s to about f32's precision times A's conditioning — a preconditioner for conjugate
     /// gradients on A in f64 (`one_ring.rs`), not an answer. f32's supernodal factorization
-    /// ran in 0.51–0.63 of f64's time at 317² (100k vertices; each half, min of 3) and
-    /// 0.6–0.9 at 128². `None` where the factor is not split or its halves are hair-like
-    /// (the own narrow solve is f64 only). `col_ptr`/`row_idx`: the pattern it was built
-    /// for. Refuses a twin larger than `max_bytes` (its own buffers) before allocating it.
+    /// takes clearly less than f64's time on large sheets (`weft bench solid` measures it;
+    /// figures in docs/history/issue-71-comments.md). `None` where the factor is not split or
+    /// its halves are hair-like (the own narrow solve is f64 only). `col_ptr`/`row_idx`: the
+    /// pattern it was built for. Refuses a twin larger than `max_bytes` (its own buffers)
+    /// before allocating it.
     pub(super) fn single_twin(
         &self,
         col_ptr: &[usize],

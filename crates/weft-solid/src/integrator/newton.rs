@@ -5,7 +5,7 @@
 //! stopping tests of `rate.rs`).
 
 use super::pool::in_pool;
-use super::{Integrator, Mode, NONE, partition, rate};
+use super::{Integrator, Mode, NONE, Route, Start, partition, rate};
 use crate::settings::{Method, Settings, StepError, StepStats};
 use crate::system::{SolidSystem, State, SystemError};
 use nalgebra::Vector3;
@@ -55,7 +55,7 @@ impl Integrator {
     /// state (x̄, v̄) (inertia ½‖x − x̄ − h̃v̄ − h̃²g‖²_M/h̃², damping and drag measured from x̄),
     /// so it is one: the same Newton, line search and statistics. Implicit Euler damps a swing
     /// at first order in h (a 0.3 rad pendulum at h = 1/48 s: 3.1e-2 rad off after 1 s,
-    /// `tests/time_integration.rs`); BDF2's error is second order (1.1e-3 rad there) and it stays L-stable (stiff modes
+    /// `crates/weft-nodes/tests/time_integration.rs`); BDF2's error is second order (1.1e-3 rad there) and it stays L-stable (stiff modes
     /// are still damped). Pinned vertices go to `pinned_to` as in [`Self::step`]. On error
     /// `state` is unchanged.
     pub fn step_bdf2(
@@ -93,55 +93,49 @@ impl Integrator {
         Ok(stats)
     }
 
-    /// [`Self::step`] with Newton starting from `guess` (end-of-step positions, e.g. the
-    /// last coupling iteration's) instead of x⁰ + h v⁰. The answer is the same minimizer to
-    /// the tolerance; a good guess needs fewer iterations. Pinned vertices still go to their
-    /// targets; a guess of the wrong length, or not finite, is ignored.
-    pub fn step_from(
+    /// A static step ([`Method::Static`]): held vertices to their targets, the rest from the
+    /// guess (else where they are), the static equilibrium found by Newton; velocities zero.
+    pub(super) fn static_step(
         &mut self,
         sys: &SolidSystem,
         state: &mut State,
-        guess: Option<&[Vector3<f64>]>,
-        pinned_to: Option<&[Vector3<f64>]>,
+        start: Start<'_>,
+        settings: &Settings,
+    ) -> Result<StepStats, StepError> {
+        let Start { x0, target, guess } = start;
+        let mut x = state.x.clone();
+        for i in (0..self.lin.n).filter(|&i| self.held(i)) {
+            x[i] = target(i);
+        }
+        if let Some(g) = guess {
+            for i in (0..self.lin.n).filter(|&i| !self.held(i)) {
+                x[i] = g[i];
+            }
+        }
+        self.retract(sys, &mut x);
+        let stats = in_pool(self.threaded(), || {
+            self.minimize(sys, &mut x, x0, Mode::Static, settings)
+        })?;
+        state.x = x;
+        state.v.iter_mut().for_each(|v| *v = Vector3::zeros());
+        Ok(stats)
+    }
+
+    /// An implicit Euler step by Newton ([`Method::Newton`], [`Method::ProjectedNewton`],
+    /// [`Method::Linearized`]) from the guess, else from x⁰ + h v⁰.
+    pub(super) fn implicit_step(
+        &mut self,
+        sys: &SolidSystem,
+        state: &mut State,
+        start: Start<'_>,
         h: f64,
         settings: &Settings,
     ) -> Result<StepStats, StepError> {
-        sys.check(state)?;
-        let guess = guess.filter(|g| {
-            g.len() == state.x.len() && g.iter().all(|p| p.iter().all(|c| c.is_finite()))
-        });
-        let x0 = state.x.clone();
-        let target = |i: usize| pinned_to.map_or(x0[i], |p| p[i]);
-        if settings.method == Method::Explicit {
-            if !sys.rigid.is_empty() {
-                return Err(StepError::System(SystemError::BadRigid {
-                    group: 0,
-                    reason: "explicit steps cannot keep a group rigid: use method newton, linearized or static".into(),
-                }));
-            }
-            return self.explicit(sys, state, &x0, &target, h);
-        }
+        let Start { x0, target, guess } = start;
         let mut x = state.x.clone();
-        if settings.method == Method::Static {
-            for i in (0..self.lin.n).filter(|&i| self.held(i)) {
-                x[i] = target(i);
-            }
-            if let Some(g) = guess {
-                for i in (0..self.lin.n).filter(|&i| !self.held(i)) {
-                    x[i] = g[i];
-                }
-            }
-            self.retract(sys, &mut x);
-            let stats = in_pool(self.threaded(), || {
-                self.minimize(sys, &mut x, &x0, Mode::Static, settings)
-            })?;
-            state.x = x;
-            state.v.iter_mut().for_each(|v| *v = Vector3::zeros());
-            return Ok(stats);
-        }
-        self.predict(sys, state, &mut x, &target, guess, h);
+        self.predict(sys, state, &mut x, target, guess, h);
         let stats = in_pool(self.threaded(), || {
-            self.minimize(sys, &mut x, &x0, Mode::Dynamic { h }, settings)
+            self.minimize(sys, &mut x, x0, Mode::Dynamic { h }, settings)
         })?;
         for i in 0..self.lin.n {
             state.v[i] = (x[i] - x0[i]) / h;
@@ -150,44 +144,21 @@ impl Integrator {
         Ok(stats)
     }
 
-    /// The start of an implicit step from `state` (x⁰): held vertices at their targets, x̂ for
-    /// every vertex, and the first iterate `x` (the guess, else x⁰ + h v⁰).
-    pub(super) fn predict(
+    /// A symplectic Euler step ([`Method::Explicit`]); rigid groups refused.
+    pub(super) fn explicit_step(
         &mut self,
         sys: &SolidSystem,
-        state: &State,
-        x: &mut [Vector3<f64>],
-        target: &dyn Fn(usize) -> Vector3<f64>,
-        guess: Option<&[Vector3<f64>]>,
+        state: &mut State,
+        start: Start<'_>,
         h: f64,
-    ) {
-        let x0 = &state.x;
-        for i in 0..self.lin.n {
-            if self.held(i) {
-                x[i] = target(i);
-                self.work.x_hat[i] = x[i];
-            } else {
-                // x̂ = x⁰ + h v⁰ + h² (g + f/m): constant forces act like gravity.
-                self.work.x_hat[i] =
-                    x0[i] + h * state.v[i] + h * h * (sys.gravity + sys.force(i) / sys.mass[i]);
-                x[i] = guess.map_or(x0[i] + h * state.v[i], |g| g[i]);
-            }
+    ) -> Result<StepStats, StepError> {
+        if !sys.rigid.is_empty() {
+            return Err(StepError::System(SystemError::BadRigid {
+                group: 0,
+                reason: "explicit steps cannot keep a group rigid: use method newton, linearized or static".into(),
+            }));
         }
-        if guess.is_none() {
-            // A rigid group's first guess moves it rigidly: by its centroid's velocity.
-            for g in &sys.rigid {
-                let (mut p, mut w) = (Vector3::zeros(), 0.0);
-                for &v in &g.vertices {
-                    p += sys.mass[v as usize] * state.v[v as usize];
-                    w += sys.mass[v as usize];
-                }
-                let vc = p / w;
-                for &v in &g.vertices {
-                    x[v as usize] = x0[v as usize] + h * vc;
-                }
-            }
-        }
-        self.retract(sys, x);
+        self.explicit(sys, state, start.x0, start.target, h)
     }
 
     /// Moves `state` to static equilibrium under gravity, the constant forces and the elastic
@@ -236,15 +207,15 @@ impl Integrator {
         mode: Mode,
         settings: &Settings,
     ) -> Result<StepStats, StepError> {
-        self.dirs.pcg = matches!(mode, Mode::Dynamic { .. }) && settings.method == Method::Newton;
-        if self.dirs.pcg && !self.dirs.one_ring_tried {
+        let pcg = matches!(mode, Mode::Dynamic { .. }) && settings.method == Method::Newton;
+        if pcg && !self.dirs.one_ring_tried {
             self.dirs.one_ring_tried = true;
             // Not paying, or too large for the memory limit: H's factor serves as before. The
             // limit holds for all the factors together: each preconditioner gets half of what
             // H's factor and the one built before it left. Half: they are optional, and the
-            // rest of the run (its output nodes, a rebuild for contacts) needs room too
-            // (measured under `ulimit -v` 400 MiB on a 100² sheet, a twin that took all of
-            // it left a 600 KiB preview refused).
+            // rest of the run (its output nodes, a rebuild for contacts) needs room too (under
+            // a tight `ulimit -v` a twin that takes all of it leaves an output's preview
+            // refused; weft-cli's `tests/memory.rs` runs such ceilings).
             let max = self.hooks.max_bytes;
             let left = |used: u64| max.map(|m| m.saturating_sub(used) / 2);
             self.dirs.one_ring = self
@@ -265,9 +236,13 @@ impl Integrator {
         }
         // The one-ring's factor first (the cheaper one); the single-precision one where
         // there is no one-ring, or from where it declines.
-        self.dirs.pcg_single = self.dirs.one_ring.is_none();
+        self.dirs.route = match (pcg, self.dirs.one_ring.is_some()) {
+            (false, _) => Route::Factor,
+            (true, true) => Route::OneRing,
+            (true, false) => Route::Single,
+        };
         let out = self.newton(sys, x, x0, mode, settings);
-        self.dirs.pcg = false;
+        self.dirs.route = Route::Factor;
         // Carried stresses belong to this step's iteration only.
         self.carried.clear();
         out
@@ -293,17 +268,14 @@ impl Integrator {
             Mode::Dynamic { h } => 1.0 / h,
             Mode::Static => 1.0,
         };
-        let mut g0 = 0.0f64;
-        // The objective at the current iterate, when the last line search computed it (the
-        // accepted trial's): the next line search starts from it instead of evaluating
-        // every element's energy again. Same function, same bits.
-        let mut e_at_x: Option<f64> = None;
-        // The inertia that last made the exact Hessian positive definite in this step.
-        let mut last_shift = 0.0;
+        let mut lp = Loop {
+            g0: 0.0,
+            e_at_x: None,
+            last_shift: 0.0,
+            stuck: false,
+        };
         let mut rate = rate::RateStop::default();
         let mut friction_rate = rate::RateStop::default();
-        // Whether a step of this loop stopped at a slider's stick point (`stick_cap`).
-        let mut stuck = false;
         // Membranes carry their stress (the mixed form) where the first tries are exact.
         let carry = matches!(mode, Mode::Dynamic { .. }) && settings.method == Method::Newton;
         self.start_carried(sys, x0, carry);
@@ -312,58 +284,8 @@ impl Integrator {
             if self.should_stop() {
                 return Err(StepError::Interrupted { iteration: it });
             }
-            // Newton with the exact Hessian where it is positive definite (quadratic
-            // convergence), else the projected one (always a descent direction; linear
-            // convergence where the cloth buckles, since projection drops the membrane's
-            // negative compressive stiffness that bending balances).
-            let first = match mode {
-                Mode::Dynamic { h } if settings.method == Method::Newton => {
-                    self.first_direction(sys, x, x0, h, &mut last_shift, &mut stats)
-                }
-                _ => None,
-            };
-            if first.is_none() {
-                let t = Instant::now();
-                self.assemble(sys, x, x0, mode);
-                stats.assembly_seconds += t.elapsed().as_secs_f64();
-                if matches!(mode, Mode::Dynamic { .. }) && settings.method == Method::Newton {
-                    stats.projected += 1;
-                }
-            }
-            if !self.work.grad.iter().all(|g| g.is_finite()) {
-                return Err(StepError::NonFinite { iteration: it });
-            }
-            let gnorm = self.work.grad.iter().fold(0.0f64, |m, g| m.max(g.abs()));
-            if it == 0 {
-                g0 = gnorm.max(f64::MIN_POSITIVE);
-            }
-            // Static: a proximal shift μ that shrinks with the gradient (Levenberg–Marquardt),
-            // so free modes stay regular while convergence stays superlinear.
-            let shift = match mode {
-                Mode::Static => {
-                    1e-9 * self.lin.values.iter().fold(0.0f64, |m, v| m.max(v.abs()))
-                        * (gnorm / g0).clamp(1e-4, 1.0)
-                }
-                Mode::Dynamic { .. } => 0.0,
-            };
-            if first.is_none() {
-                self.newton_direction(&mut stats, shift)?;
-            }
-            let mut res = self.direction_size(scale);
-            // A direction computed with added inertia is shorter than Newton's: below the
-            // tolerance it proves nothing, so the projected Hessians' direction decides.
-            let reassembled = first == Some(true) && res < settings.tolerance;
-            if reassembled {
-                let t = Instant::now();
-                self.assemble(sys, x, x0, mode);
-                stats.assembly_seconds += t.elapsed().as_secs_f64();
-                stats.projected += 1;
-                self.newton_direction(&mut stats, shift)?;
-                res = self.direction_size(scale);
-            }
-            if !res.is_finite() {
-                return Err(StepError::NonFinite { iteration: it });
-            }
+            let (first, res, reassembled) =
+                self.iteration_direction(sys, x, x0, mode, settings, it, &mut lp, &mut stats)?;
             stats.iterations = it + 1;
             stats.residuals.push(res);
             self.report_newton(it + 1, res);
@@ -373,89 +295,8 @@ impl Integrator {
             // (Not an iteration that left a slider's friction out: `SlideForces`.)
             let done =
                 !linearized && res < settings.tolerance && !self.sliders.slide_forces.frictionless;
-            // Backtracking line search on the objective (Armijo, c = 1e-4).
-            // (Not needed when the whole step is taken.)
-            // Sliders' friction depends on this iteration's normal forces: a new objective.
-            if Self::slide_friction(sys) {
-                e_at_x = None;
-            }
-            let (e0, slope, xmax) = if linearized || done {
-                (0.0, 0.0, 0.0)
-            } else {
-                (
-                    e_at_x.unwrap_or_else(|| self.objective(sys, x, x0, mode)),
-                    self.work
-                        .grad
-                        .iter()
-                        .zip(&self.work.dir)
-                        .map(|(g, d)| g * d)
-                        .sum(),
-                    x.iter().fold(0.0f64, |m, p| m.max(p.amax())),
-                )
-            };
-            // Stopped at a frictional slider's stick point, where friction's potential has
-            // its kink (`stick_cap`), once a step: several sliders reversing at different
-            // fractions are then left to the line search rather than taking a cut each.
-            let mut alpha = match mode {
-                Mode::Dynamic { h }
-                    if !linearized && !done && !stuck && Self::slide_friction(sys) =>
-                {
-                    self.stick_cap(sys, x, x0, &self.work.dir, h, 1.0)
-                }
-                _ => 1.0,
-            };
-            stuck |= alpha < 1.0;
-            e_at_x = None;
             let corrections = stats.corrections;
-            loop {
-                let mut trial = std::mem::take(&mut self.work.x_trial);
-                self.place(sys, x, &self.work.dir, alpha, &mut trial);
-                self.work.x_trial = trial;
-                if linearized || done {
-                    break;
-                }
-                let e1 = self.objective(sys, &self.work.x_trial, x0, mode);
-                e_at_x = Some(e1);
-                // When the predicted decrease is below a bound on the objective's floating-point
-                // resolution (≈ ε · |forces| · |positions|: terms like ½kL(l/L − 1)² are small
-                // numbers made from large ones) the comparison may be noise: take the Newton
-                // step, which descends locally. The bound is loose (on a buckling sheet the
-                // objective resolved changes 1e4× smaller), and that helps: tighter ones cut
-                // the nearly singular steps that cross flat buckling modes, 949 → 955 and
-                // 1,096 Newton iterations over ten cases (BENCHMARKS.md, thirty-ninth session).
-                let unresolvable = -slope * alpha <= 64.0 * f64::EPSILON * self.force_scale * xmax;
-                if e1 <= e0 + 1e-4 * alpha * slope || unresolvable || alpha < 1e-10 {
-                    break;
-                }
-                // A full step that stretches rods more than the Newton model predicted (the
-                // model is linear in each segment's length, the length is not: a strand
-                // swinging by d lengthens its segments by ~d²/2L) is rejected here, and
-                // halving it converges slowly (the Maratos effect). A second-order
-                // correction restores the lengths the model predicted, then the step is
-                // tested again.
-                if alpha == 1.0 && !self.correction.is_empty() {
-                    stats.correction_sweeps += self.correction.apply(
-                        &self.lin.free_of,
-                        &sys.mass,
-                        x,
-                        &self.work.dir,
-                        &self.work.x_trial,
-                        &mut self.work.x_soc,
-                    );
-                    let mut soc = std::mem::take(&mut self.work.x_soc);
-                    self.retract(sys, &mut soc);
-                    self.work.x_soc = soc;
-                    let e2 = self.objective(sys, &self.work.x_soc, x0, mode);
-                    if e2 <= e0 + 1e-4 * slope {
-                        std::mem::swap(&mut self.work.x_trial, &mut self.work.x_soc);
-                        stats.corrections += 1;
-                        e_at_x = Some(e2);
-                        break;
-                    }
-                }
-                alpha *= 0.5;
-                stats.halvings += 1;
-            }
+            let alpha = self.line_search(sys, x, x0, mode, linearized || done, &mut lp, &mut stats);
             std::mem::swap(x, &mut self.work.x_trial);
             if !sys.sliders.is_empty() {
                 let dir = std::mem::take(&mut self.work.dir);
@@ -466,50 +307,22 @@ impl Integrator {
                 stats.converged = true;
                 break;
             }
-            if !self.carried.is_empty() {
-                let from = std::mem::take(&mut self.work.x_trial);
-                self.carry_stress(sys, &from, x, alpha);
-                self.work.x_trial = from;
-            }
-            // After a shifted direction, a move along the negative curvature its inertia
-            // hid (`curvature.rs`). (The rate's test below counts unshifted steps only.)
-            if let (Mode::Dynamic { h }, Some(true), false) = (mode, first, reassembled)
-                && self.curvature_moves(sys)
-            {
-                let t = Instant::now();
-                let lambda = self.negative_curvature(sys, h, last_shift);
-                stats.solve_seconds += t.elapsed().as_secs_f64();
-                if lambda < 0.0 {
-                    let base = alpha * self.step_size(&self.work.dir);
-                    let moved = self.curvature_search(sys, x, x0, mode, base, &mut e_at_x);
-                    stats.curvature_moves += usize::from(moved);
-                }
-            }
-            // Then the few vertices whose steps lag the rest solved locally, each patch
-            // around one of them by its own Newton iterations (`elimination.rs`). Where
-            // they end the step's last iterations, the rate's test below reads the
-            // contraction of Newton and this together, the iteration that is repeated.
-            if let (Mode::Dynamic { h }, true) = (mode, carry && self.eliminates(sys)) {
-                let mut before = std::mem::take(&mut self.work.x_trial);
-                before.copy_from_slice(x);
-                let moved = self.eliminate(sys, x, x0, h, alpha, scale, settings.tolerance);
-                if moved > 0 {
-                    stats.eliminations += moved;
-                    e_at_x = None;
-                    // The moved membranes' carried stress follows by their linearized strain,
-                    // as after a move along negative curvature.
-                    self.carry_stress(sys, &before, x, 0.0);
-                }
-                self.work.x_trial = before;
-            }
+            let accepted = Accepted {
+                alpha,
+                first,
+                reassembled,
+                carry,
+                scale,
+            };
+            self.after_accepted(sys, x, x0, mode, settings, accepted, &mut lp, &mut stats);
             // Or the corrections still to come, estimated from the contraction of the full
             // steps (`rate.rs`), are below the tolerance: with the first Hessians only
             // (exact where cheap, membranes' tension carried — the mixed form's Newton —,
             // midedge bending's Gauss–Newton term; unshifted), whose
             // convergence is superlinear. A shifted direction is not Newton's, and projected
             // Hessians converge linearly at a rate that can worsen as the fast modes die
-            // out (projected Newton on cloth_hang: 13.42 → 10.56 iterations a step with
-            // them, 1.9 → 2.9 cm off the converged run where it buckles). Sliders'
+            // out (on cloth_hang where it buckles they cost more iterations a step and end
+            // centimetres off the converged run). Sliders'
             // friction, lagged a normal force behind, is a fixed-point iteration of its own:
             // its normal forces' changes must contract too (`friction_rate`).
             let full = alpha == 1.0 && stats.corrections == corrections && first == Some(false);
@@ -529,6 +342,235 @@ impl Integrator {
             });
         }
         Ok(stats)
+    }
+
+    /// One Newton iteration's direction in `dir` and its size (the residual): with the
+    /// exact Hessian where it is positive definite (quadratic convergence), else the
+    /// projected one (always a descent direction; linear convergence where the cloth
+    /// buckles, since projection drops the membrane's negative compressive stiffness that
+    /// bending balances). Returns whether the first (exact) try made it (`Some(shifted)`),
+    /// the residual, and whether a shifted direction was replaced by the projected one.
+    #[allow(clippy::too_many_arguments)]
+    fn iteration_direction(
+        &mut self,
+        sys: &SolidSystem,
+        x: &[Vector3<f64>],
+        x0: &[Vector3<f64>],
+        mode: Mode,
+        settings: &Settings,
+        it: usize,
+        lp: &mut Loop,
+        stats: &mut StepStats,
+    ) -> Result<(Option<bool>, f64, bool), StepError> {
+        let scale = match mode {
+            Mode::Dynamic { h } => 1.0 / h,
+            Mode::Static => 1.0,
+        };
+        let first = match mode {
+            Mode::Dynamic { h } if settings.method == Method::Newton => {
+                self.first_direction(sys, x, x0, h, &mut lp.last_shift, stats)
+            }
+            _ => None,
+        };
+        if first.is_none() {
+            let t = Instant::now();
+            self.assemble(sys, x, x0, mode);
+            stats.assembly_seconds += t.elapsed().as_secs_f64();
+            if matches!(mode, Mode::Dynamic { .. }) && settings.method == Method::Newton {
+                stats.projected += 1;
+            }
+        }
+        if !self.work.grad.iter().all(|g| g.is_finite()) {
+            return Err(StepError::NonFinite { iteration: it });
+        }
+        let gnorm = self.work.grad.iter().fold(0.0f64, |m, g| m.max(g.abs()));
+        if it == 0 {
+            lp.g0 = gnorm.max(f64::MIN_POSITIVE);
+        }
+        // Static: a proximal shift μ that shrinks with the gradient (Levenberg–Marquardt),
+        // so free modes stay regular while convergence stays superlinear.
+        let shift = match mode {
+            Mode::Static => {
+                1e-9 * self.lin.values.iter().fold(0.0f64, |m, v| m.max(v.abs()))
+                    * (gnorm / lp.g0).clamp(1e-4, 1.0)
+            }
+            Mode::Dynamic { .. } => 0.0,
+        };
+        if first.is_none() {
+            self.newton_direction(stats, shift)?;
+        }
+        let mut res = self.direction_size(scale);
+        // A direction computed with added inertia is shorter than Newton's: below the
+        // tolerance it proves nothing, so the projected Hessians' direction decides.
+        let reassembled = first == Some(true) && res < settings.tolerance;
+        if reassembled {
+            let t = Instant::now();
+            self.assemble(sys, x, x0, mode);
+            stats.assembly_seconds += t.elapsed().as_secs_f64();
+            stats.projected += 1;
+            self.newton_direction(stats, shift)?;
+            res = self.direction_size(scale);
+        }
+        if !res.is_finite() {
+            return Err(StepError::NonFinite { iteration: it });
+        }
+        Ok((first, res, reassembled))
+    }
+
+    /// The step length α along `dir`, with the trial point x + α·dir left in `x_trial`:
+    /// backtracking on the objective (Armijo, c = 1e-4) with the rods' second-order
+    /// correction, from a full step or from a frictional slider's stick point. `whole`
+    /// (linearized, or converged): the full step, untested.
+    #[allow(clippy::too_many_arguments)]
+    fn line_search(
+        &mut self,
+        sys: &SolidSystem,
+        x: &[Vector3<f64>],
+        x0: &[Vector3<f64>],
+        mode: Mode,
+        whole: bool,
+        lp: &mut Loop,
+        stats: &mut StepStats,
+    ) -> f64 {
+        // Sliders' friction depends on this iteration's normal forces: a new objective.
+        if Self::slide_friction(sys) {
+            lp.e_at_x = None;
+        }
+        let (e0, slope, xmax) = if whole {
+            (0.0, 0.0, 0.0)
+        } else {
+            (
+                lp.e_at_x
+                    .unwrap_or_else(|| self.objective(sys, x, x0, mode)),
+                self.work
+                    .grad
+                    .iter()
+                    .zip(&self.work.dir)
+                    .map(|(g, d)| g * d)
+                    .sum(),
+                x.iter().fold(0.0f64, |m, p| m.max(p.amax())),
+            )
+        };
+        // Stopped at a frictional slider's stick point, where friction's potential has
+        // its kink (`stick_cap`), once a step: several sliders reversing at different
+        // fractions are then left to the line search rather than taking a cut each.
+        let mut alpha = match mode {
+            Mode::Dynamic { h } if !whole && !lp.stuck && Self::slide_friction(sys) => {
+                self.stick_cap(sys, x, x0, &self.work.dir, h, 1.0)
+            }
+            _ => 1.0,
+        };
+        lp.stuck |= alpha < 1.0;
+        lp.e_at_x = None;
+        loop {
+            let mut trial = std::mem::take(&mut self.work.x_trial);
+            self.place(sys, x, &self.work.dir, alpha, &mut trial);
+            self.work.x_trial = trial;
+            if whole {
+                break;
+            }
+            let e1 = self.objective(sys, &self.work.x_trial, x0, mode);
+            lp.e_at_x = Some(e1);
+            // When the predicted decrease is below a bound on the objective's floating-point
+            // resolution (≈ ε · |forces| · |positions|: terms like ½kL(l/L − 1)² are small
+            // numbers made from large ones) the comparison may be noise: take the Newton
+            // step, which descends locally. The bound is loose (on a buckling sheet the
+            // objective resolves changes far smaller), and that helps: tighter ones cut
+            // the nearly singular steps that cross flat buckling modes and cost iterations.
+            let unresolvable = -slope * alpha <= 64.0 * f64::EPSILON * self.force_scale * xmax;
+            if e1 <= e0 + 1e-4 * alpha * slope || unresolvable || alpha < 1e-10 {
+                break;
+            }
+            // A full step that stretches rods more than the Newton model predicted (the
+            // model is linear in each segment's length, the length is not: a strand
+            // swinging by d lengthens its segments by ~d²/2L) is rejected here, and
+            // halving it converges slowly (the Maratos effect). A second-order
+            // correction restores the lengths the model predicted, then the step is
+            // tested again.
+            if alpha == 1.0 && !self.correction.is_empty() {
+                stats.correction_sweeps += self.correction.apply(
+                    &self.lin.free_of,
+                    &sys.mass,
+                    x,
+                    &self.work.dir,
+                    &self.work.x_trial,
+                    &mut self.work.x_soc,
+                );
+                let mut soc = std::mem::take(&mut self.work.x_soc);
+                self.retract(sys, &mut soc);
+                self.work.x_soc = soc;
+                let e2 = self.objective(sys, &self.work.x_soc, x0, mode);
+                if e2 <= e0 + 1e-4 * slope {
+                    std::mem::swap(&mut self.work.x_trial, &mut self.work.x_soc);
+                    stats.corrections += 1;
+                    lp.e_at_x = Some(e2);
+                    break;
+                }
+            }
+            alpha *= 0.5;
+            stats.halvings += 1;
+        }
+        alpha
+    }
+
+    /// After an accepted step (x moved, its start in `x_trial`): the membranes' carried
+    /// stress follows, then a move along the negative curvature a shifted direction hid,
+    /// then the lagging vertices' local solves.
+    #[allow(clippy::too_many_arguments)]
+    fn after_accepted(
+        &mut self,
+        sys: &SolidSystem,
+        x: &mut Vec<Vector3<f64>>,
+        x0: &[Vector3<f64>],
+        mode: Mode,
+        settings: &Settings,
+        step: Accepted,
+        lp: &mut Loop,
+        stats: &mut StepStats,
+    ) {
+        let Accepted {
+            alpha,
+            first,
+            reassembled,
+            carry,
+            scale,
+        } = step;
+        if !self.carried.is_empty() {
+            let from = std::mem::take(&mut self.work.x_trial);
+            self.carry_stress(sys, &from, x, alpha);
+            self.work.x_trial = from;
+        }
+        // After a shifted direction, a move along the negative curvature its inertia
+        // hid (`curvature.rs`). (The rate's test counts unshifted steps only.)
+        if let (Mode::Dynamic { h }, Some(true), false) = (mode, first, reassembled)
+            && self.curvature_moves(sys)
+        {
+            let t = Instant::now();
+            let lambda = self.negative_curvature(sys, h, lp.last_shift);
+            stats.solve_seconds += t.elapsed().as_secs_f64();
+            if lambda < 0.0 {
+                let base = alpha * self.step_size(&self.work.dir);
+                let moved = self.curvature_search(sys, x, x0, mode, base, &mut lp.e_at_x);
+                stats.curvature_moves += usize::from(moved);
+            }
+        }
+        // Then the few vertices whose steps lag the rest solved locally, each patch
+        // around one of them by its own Newton iterations (`elimination.rs`). Where
+        // they end the step's last iterations, the rate's test reads the
+        // contraction of Newton and this together, the iteration that is repeated.
+        if let (Mode::Dynamic { h }, true) = (mode, carry && self.eliminates(sys)) {
+            let mut before = std::mem::take(&mut self.work.x_trial);
+            before.copy_from_slice(x);
+            let moved = self.eliminate(sys, x, x0, h, alpha, scale, settings.tolerance);
+            if moved > 0 {
+                stats.eliminations += moved;
+                lp.e_at_x = None;
+                // The moved membranes' carried stress follows by their linearized strain,
+                // as after a move along negative curvature.
+                self.carry_stress(sys, &before, x, 0.0);
+            }
+            self.work.x_trial = before;
+        }
     }
 
     pub(super) fn explicit(
@@ -590,4 +632,29 @@ impl Integrator {
             ..Default::default()
         })
     }
+}
+
+/// The Newton loop's state across one step's iterations.
+struct Loop {
+    /// The first iteration's gradient norm (the static shift's scale).
+    g0: f64,
+    /// The objective at the current iterate, when the last line search computed it (the
+    /// accepted trial's): the next line search starts from it instead of evaluating every
+    /// element's energy again. Same function, same bits.
+    e_at_x: Option<f64>,
+    /// The inertia that last made the exact Hessian positive definite in this step.
+    last_shift: f64,
+    /// Whether a step of this loop stopped at a slider's stick point (`stick_cap`).
+    stuck: bool,
+}
+
+/// What an accepted step was: its length, how its direction was found
+/// ([`Integrator::iteration_direction`]), whether membranes carry stress, the residual's scale.
+#[derive(Clone, Copy)]
+struct Accepted {
+    alpha: f64,
+    first: Option<bool>,
+    reassembled: bool,
+    carry: bool,
+    scale: f64,
 }

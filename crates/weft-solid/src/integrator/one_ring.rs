@@ -3,19 +3,19 @@
 //!
 //! Shell bending couples each vertex with its two-ring (a hinge's two wing tips, a midedge
 //! triangle's flaps, a vertex's one-ring through its Laplacian), and the two-ring pattern's
-//! Cholesky factor costs 5–8× the flops of the one-ring's (measured on grids with nested
-//! dissection or minimum degree: 24² 2.3e7 against 4.3e6, 128² 7.0e9 against 1.0e9, 256²
-//! 6.2e10 against 8.3e9) and holds 2.5–3× the entries. The blocks only the wide elements (four
-//! vertices or more) touch are dropped from M, each dropped block B between vertices a and b
-//! replaced by ‖B‖_F I on both diagonals:
+//! Cholesky factor costs 5–8× the flops of the one-ring's on grids, with nested dissection
+//! or minimum degree, and holds 2.5–3× the entries (figures in
+//! docs/history/issue-71-comments.md). The blocks only the wide elements (four vertices or
+//! more) touch are dropped from M, each dropped block B between vertices a and b replaced
+//! by ‖B‖_F I on both diagonals:
 //!
 //! `M₊ = H − Σ [[0, B], [Bᵀ, 0]] + Σ [[‖B‖ I, 0], [0, ‖B‖ I]]`,
 //!
 //! and since [[s I, −B], [−Bᵀ, s I]] ⪰ 0 whenever s ≥ ‖B‖₂ (≤ ‖B‖_F), M₊ ⪰ H for any
 //! symmetric H. The preconditioned CG then converges at a rate set by how much of H's
 //! stiffness the dropped blocks carry: the bending's, small against the membrane and the
-//! inertia on the hanging cloth (the lumps are about 1e-2 of m/h² there; 1.8 CG iterations a
-//! direction).
+//! inertia on the hanging cloth (the lumps are about 1e-2 of m/h² there, so CG takes one or
+//! two iterations a direction).
 //!
 //! The exact Hessian's try needs more than a descent direction: H's own Cholesky factorization
 //! proved H positive definite, and a Newton iteration that skipped that proof could end at a
@@ -44,31 +44,27 @@ use rayon::prelude::*;
 
 /// The preconditioner is built where M's factor costs at most this fraction of H's flops:
 /// the conjugate gradients' products and solves must be paid from the difference. No size
-/// is too small: the hanging cloth resized (24 frames, 2 substeps) took 0.014 → 0.013 s of
-/// solver at 6², 0.033 → 0.030 at 8², 0.107 → 0.085 at 12², 0.22 → 0.17 at 16²
-/// (cloth_release, 17²: 0.27 → 0.18), each with the same Newton iterations.
+/// is too small: the hanging cloth resized down to 6² (and cloth_release) runs its solver
+/// faster with it, with the same Newton iterations (`weft bench solid` and the examples'
+/// `--stats-json` measure it; figures in docs/history/issue-71-comments.md).
 pub(super) const ONE_RING_GAIN: f64 = 0.4;
 
 /// CG stops when the residual's M⁻¹-norm has fallen by this factor (an inexact Newton
 /// method's forcing term, Dembo, Eisenstat & Steihaug 1982: convergence stays fast while the
-/// error left is a thousandth of the step). Measured on cloth_hang (24 frames; Newton
-/// iterations, CG iterations): 1e-3 409, 786; 1e-10 437, 2,151; before the exact Hessian's
-/// try took M₋ (every try with M₊): 1e-3 413, 764; 1e-4 415, 860; 1e-6 428, 1,263. Where
-/// the cloth starts to buckle (its frame 3) a step's objective has nearby minima, and which
-/// one Newton ends in depends on its path at any forcing: the same solver with exact
-/// directions, at tolerances 1e-4 and 1e-8, ends 1.1e-5 m apart there.
+/// error left is a thousandth of the step). On cloth_hang a tighter forcing costs many more
+/// CG iterations and no fewer Newton iterations (`--stats-json` counts both; figures in
+/// docs/history/issue-71-comments.md). Where the cloth starts to buckle a step's objective
+/// has nearby minima, and which one Newton ends in depends on its path at any forcing: the
+/// same solver with exact directions ends in different ones at different tolerances.
 const RELATIVE: f64 = 1e-3;
 
 /// From this many flops of H's (split) factorization, a preconditioner of H's own pattern in
 /// single precision is built too (`OneRing::single`), for the steps where the one-ring's
-/// declines or where there is none. `weft bench solid`'s hanging cloth as a graph
-/// (`bench/sheet_graph.py`, one step a frame: the one-ring's declines in every step), 6
-/// frames, f64 factor → single-precision preconditioner, solver seconds: 32² 0.41–0.47 →
-/// 0.46–0.47 (no gain: left out); 40² 0.78–0.88 → 0.66–0.81 (same 46 Newton iterations); 48²
-/// 1.76–1.85 → 1.34–1.47; 64² 3.67 → 3.13; 96² 9.2 → 6.8; 128² 21.8 → 15.5–19.5 (with 1.0–1.2
-/// CG iterations a direction, and 47–51 Newton iterations where the f64 path took 48–53);
-/// 317² (100k vertices), 2 frames, 47.8 → 41.8 s (factorizations 2.94 → 2.13 s each, 1.8 CG
-/// iterations a direction).
+/// declines or where there is none. On `weft bench solid`'s hanging cloth as a graph
+/// (`bench/sheet_graph.py`, one step a frame: the one-ring's declines in every step) it
+/// gains nothing at 32², just below this count, and cuts the solver's time from 40² up, the
+/// more the larger the sheet, with one or two CG iterations a direction and about the
+/// Newton iterations of the f64 path (figures in docs/history/issue-71-comments.md).
 pub(super) const SINGLE_MIN_FLOPS: f64 = 1e8;
 
 /// Products by H over fewer nodes run on the calling thread (a fork–join costs more).

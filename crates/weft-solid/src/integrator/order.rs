@@ -9,16 +9,16 @@
 //!   extent, take the vertices of one half that touch the other as the separator, order the
 //!   two halves (recursively) before it. On a sheet its separators are straight, so the
 //!   dense blocks at the top of the elimination tree are as small as the mesh allows.
-//!   Measured on the hanging cloth's pattern (shell bending couples a vertex's two-ring):
-//!   factor flops 2.94e7 → 3.06e7 at 24² (AMD wins), 9.4e7 → 8.3e7 at 32², 1.46e9 → 8.1e8 at
-//!   64², 1.61e10 → 7.3e9 at 128², 1.64e11 → 6.3e10 at 256².
+//!   On the hanging cloth's pattern (shell bending couples a vertex's two-ring) AMD needs
+//!   fewer flops up to about 24², dissection ever fewer above, about half of AMD's from
+//!   64² (figures in docs/history/issue-71-comments.md).
 //!
 //! The integrator analyses minimum degree first; where the system has a layout and that
 //! factor is large (see `DISSECTION_MIN_FLOPS` in `integrator.rs`), it analyses nested
 //! dissection too and keeps it if it needs clearly fewer flops ([`supernodal_flops`]). Both
-//! depend only on the graph and the layout, never on threads. Measured per factorization
-//! (`weft bench solid`, hanging cloth): 64² 91 → 71 ms, 128² 627 → 449 ms, 256² 8.7 → 3.4 s,
-//! 317² 7.1 → 3.6 s.
+//! depend only on the graph and the layout, never on threads. Dissection's factorizations
+//! are faster from 64² on, about twice as fast at the largest sizes (`weft bench solid`'s
+//! hanging cloth measures it; figures in docs/history/issue-71-comments.md).
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::SymbolicSparseColMatRef;
@@ -28,7 +28,8 @@ use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
 use nalgebra::Vector3;
 
 /// Subgraphs this small are ordered as they are: inside them the order changes the flops by
-/// a percent or two (measured with leaves of 4 to 64 vertices, and with AMD inside them).
+/// little (other leaf sizes, or AMD inside the leaves, gain nothing worth the work; figures
+/// in docs/history/issue-71-comments.md).
 const LEAF: usize = 16;
 
 /// AMD on the graph whose node j neighbours `nbrs[j]` (sorted, itself included): `order[i]`

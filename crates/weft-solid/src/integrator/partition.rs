@@ -8,10 +8,10 @@
 //! and the interface elements after both, on one thread. Splitting stops at [`LEAF`] elements
 //! or where the interface would be more than [`MAX_INTERFACE`] of the set.
 //!
-//! Why a tree and not a colouring: colouring the shell's two-ring stencils gave the hanging
-//! cloth (24², 2,700 elements) 38 colours of 50–150 elements each, and a fork–join per colour
-//! costs more than the colour's work on this machine (assembly 0.58 → 0.9 s when colours of
-//! 48 or more went parallel); a tree forks once per split.
+//! Why a tree and not a colouring: colouring the shell's two-ring stencils gives the hanging
+//! cloth dozens of colours of a hundred-odd elements each, and a fork–join per colour costs
+//! more than the colour's work (the colours run in parallel make assembly slower, not
+//! faster; figures in docs/history/issue-71-comments.md); a tree forks once per split.
 //!
 //! Determinism: the tree depends on the elements, the free vertices and the layout only, never
 //! on the thread count; every matrix entry receives its terms in the same order (its leaf's
@@ -20,10 +20,10 @@
 
 use nalgebra::Vector3;
 
-/// Sets with fewer elements than twice this are not split: a fork–join costs ~10 µs here
-/// when the workers are awake (tens when they sleep), an element ~0.5 µs. With leaves of
-/// 128, the hanging square at 8² (337 elements) ran its 96 steps in 33 ms against 26 ms on
-/// one thread; from 512 it is not split.
+/// Sets with fewer elements than twice this are not split: a fork–join costs as much as
+/// assembling some twenty elements when the workers are awake (more when they sleep), so
+/// smaller leaves make a small system slower than one thread (`bench/peers`' hanging square
+/// at 8² measures it; figures in docs/history/issue-71-comments.md).
 const LEAF: usize = 512;
 
 /// A split whose interface holds more than this fraction of its set is not made (its serial

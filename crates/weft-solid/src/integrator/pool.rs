@@ -6,20 +6,20 @@ use std::time::{Duration, Instant};
 /// Runs `f` on a worker of the current thread pool when `threaded` and called from outside
 /// it (at once otherwise). Why: a fork–join started outside the pool injects its job and
 /// waits for a worker to wake, and then for a second one to steal the other half; between two
-/// assemblies (a factorization apart) the workers fall asleep. Measured on this 2-core
-/// machine, a 1 ms job split in two with 10 ms between calls: 1.01 ms from outside the pool
-/// (serial: 0.97 ms), 0.59 ms from a worker. The move itself waits for a worker too, once a
-/// step: systems with nothing to run concurrently stay on the caller (a 25-vertex sheet's
-/// steps, 70 µs each, took 40× as long when moved).
+/// assemblies (a factorization apart) the workers fall asleep, so a job split in two from
+/// outside the pool runs no faster than serially, and from a worker nearly twice as fast.
+/// The move itself waits for a worker too, once a step: systems with nothing to run
+/// concurrently stay on the caller (a small sheet's short steps take many times as long
+/// when moved).
 ///
 /// While `f` runs, a second worker stays awake ([`keep_warm`]): the step's fork–joins come
 /// every few hundred microseconds (an assembly's tree, the split factorization's halves, its
 /// two triangular solves), and a worker that fell asleep between them is woken by a system
-/// call and a context switch each time. Measured (farm-bench, paired runs, wall A/B): the
-/// hanging cloth 24² 0.96 on a quiet machine (0.93 on a noisy one), 32² 0.97, 64² 0.94, the
-/// cloth drape 0.96, hair on the head 0.99; the same bits. The helper leaves after 500 µs
-/// without work: spinning through a contact step's sequential stretches cost hair on the
-/// head 11 % more CPU time for nothing.
+/// call and a context switch each time. Kept awake, it makes the hanging cloth, the drape
+/// and the hair a few percent faster, with the same bits. The helper leaves after 500 µs
+/// without work: spinning through a contact step's sequential stretches costs CPU time for
+/// nothing. Paired `farm-bench` runs of the examples measure it; figures in
+/// docs/history/issue-71-comments.md.
 pub(crate) fn in_pool<R: Send>(threaded: bool, f: impl FnOnce() -> R + Send) -> R {
     if !threaded || rayon::current_thread_index().is_some() || rayon::current_num_threads() < 2 {
         return f();

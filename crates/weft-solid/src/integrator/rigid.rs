@@ -248,9 +248,9 @@ impl Integrator {
     /// the Hessian of the energy restricted to them, exact there. Left in, the exponential
     /// map's second-order cross terms (a turn about a and one about b move a member along b
     /// by ½ θ_a θ_b |q|) couple the gauge, whose diagonal is zero, to the turns that carry a
-    /// torque, so the Hessian is indefinite at every iterate off equilibrium (measured on
-    /// `graphs/curtain_rail.json`'s two-vertex rings: 314 inertia shifts in 280 Newton
-    /// iterations).
+    /// torque, so the Hessian is indefinite at every iterate off equilibrium (on
+    /// `graphs/curtain_rail.json`'s two-vertex rings, more inertia shifts than Newton
+    /// iterations; figures in docs/history/issue-71-comments.md).
     pub(super) fn finish_groups(&mut self, hessians: Hessians) {
         for g in 0..self.groups.node.len() {
             let mut m = Matrix3::zeros();

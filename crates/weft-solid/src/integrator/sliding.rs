@@ -17,9 +17,9 @@ use crate::system::SolidSystem;
 /// at a converged step, the constraint's reaction. Read at an iterate it is the reaction
 /// plus whatever the stiffest element next to the node is out of balance: a strand's
 /// stretch (EA/L = 1.8e5 N/m against its root's m/h² of 0.61 N/m) turns a position error of
-/// tol·h = 2e-6 m into 0.35 N on a strand weighing 0.04 N, so friction read from it held a
-/// root that should slide and stalled Newton (BENCHMARKS.md, thirty-fourth and
-/// thirty-fifth sessions). After a step α·d the model predicts g + αH·d on the node: for a
+/// tol·h = 2e-6 m into 0.35 N on a strand weighing 0.04 N, so friction read from it holds a
+/// root that should slide and stalls Newton (`graphs/curtain_rail.json` and a strand whose
+/// root slides show it). After a step α·d the model predicts g + αH·d on the node: for a
 /// full step the free rows' imbalance is met and only the model's error, second order in
 /// the step, is left (the multiplier estimate of sequential quadratic programming); a
 /// shortened step leaves (1 − α) of the iterate's. H is the matrix before the filter,
@@ -67,13 +67,30 @@ pub(super) struct SlideForces {
     pub(super) change: f64,
 }
 
+impl SlideForces {
+    /// Sized for `n` sliders at an assembly's start: no column kept, no node, nothing left
+    /// out and no change yet (what the last iteration used and the model predicted stay).
+    fn reset(&mut self, n: usize) {
+        self.frictionless = false;
+        self.change = 0.0;
+        self.used.resize(n, f64::NAN);
+        self.node.clear();
+        self.node.resize(n, NONE);
+        self.grad.resize(n, Vector3::zeros());
+        self.column.clear();
+        self.start.clear();
+        self.start.resize(n + 1, 0);
+        self.predicted.resize(n, None);
+    }
+}
+
 /// How much stiffer than its inertia m/h² a sliding node may be (its diagonal's mean, its
 /// neighbours' stiffness included) and still have the normal force of a step's first
 /// iteration read from the gradient at the first guess, whose error is the position
-/// error times that stiffness. Measured in the thirty-fifth session: curtain_rail's rings
-/// 87–136 (from the gradient: 5.83 Newton iterations a step, 6.38 without friction in the
-/// first iteration), a strand
-/// root 9.7e4 (from the gradient 16.2–19.7 iterations a step, without friction 5.90–6.52).
+/// error times that stiffness. The bound lies between curtain_rail's rings (about 1e2),
+/// which take fewer Newton iterations with friction from the gradient than without it in
+/// the first iteration, and a stiffly held strand root (about 1e5), which takes several
+/// times the iterations so (figures in docs/history/issue-71-comments.md).
 const STIFF_NODE: f64 = 1e3;
 
 /// The mass-weighted centroid of `members` at `x`.
@@ -233,11 +250,12 @@ impl Integrator {
     /// together stay below the tolerance. Friction reads the normal force the last step
     /// predicted, so the loop is also a fixed-point iteration on N, whose contraction the
     /// Newton steps' ratio does not show: on a strand whose stiffly held root slides with
-    /// friction (μ = 0.05, 1e-4 m/s), the Newton steps' test alone ended 2.4e-4 m from the
-    /// converged run, where the measured test ends 1.5e-6 m from it and this one 3.0e-6 m
-    /// (5.90 → 5.85 Newton iterations a step; the sequence starts after a first iteration
-    /// without friction, whose normal force of zero is no term of it); curtain_rail's rings
-    /// 5.12 → 4.56 a step, 8.75e-6 → 8.74e-6 m from its run at 1e-8 m/s.
+    /// friction (μ = 0.05, 1e-4 m/s), the Newton steps' test alone ends far from the
+    /// converged run, and this one about as near as the measured test, in about its
+    /// iterations (the sequence starts after a first iteration without friction, whose
+    /// normal force of zero is no term of it); curtain_rail's rings take fewer iterations a
+    /// step with it, as near their run at 1e-8 m/s (figures in
+    /// docs/history/issue-71-comments.md).
     pub(super) fn friction_budget(
         &self,
         sys: &SolidSystem,
@@ -359,118 +377,134 @@ impl Integrator {
             return;
         }
         self.map_sliders(sys, x);
-        let n_sliders = sys.sliders.len();
-        let sf = &mut self.sliders.slide_forces;
-        sf.frictionless = false;
-        sf.change = 0.0;
-        sf.used.resize(n_sliders, f64::NAN);
-        sf.node.clear();
-        sf.node.resize(n_sliders, NONE);
-        sf.grad.resize(n_sliders, Vector3::zeros());
-        sf.column.clear();
-        sf.start.clear();
-        sf.start.resize(n_sliders + 1, 0);
-        sf.predicted.resize(n_sliders, None);
-        let dynamic = matches!(mode, Mode::Dynamic { .. });
-        for (k, sl) in sys.sliders.iter().enumerate() {
-            let v = sl.vertex as usize;
-            let from = self.sliders.slide_forces.column.len();
-            self.sliders.slide_forces.start[k + 1] = from;
-            let Some((f, at)) = self.slider_node(sys, x, v) else {
-                continue;
-            };
-            let g = Vector3::new(
-                self.work.grad[3 * f],
-                self.work.grad[3 * f + 1],
-                self.work.grad[3 * f + 2],
-            );
-            if dynamic && sl.friction > 0.0 {
-                self.keep_column(k, f, g);
-            }
-            // The force on the node (the model's where it has one): whether it pushes past a
-            // stop is the sign of the constraint's multiplier.
-            let force = self.sliders.slide_forces.predicted[k].unwrap_or(g);
-            let p = match place(&sys.rails, &sys.surfaces, sl.on, &at) {
-                Some(pl) => projector(&pl, &force),
-                None => Matrix3::zeros(),
-            };
-            self.sliders.slide_proj[k] = p;
-            self.sliders.slide_scale[k] = (0..3)
-                .map(|c| self.lin.values[self.lin.diagonal_entry(f, c)])
-                .sum::<f64>()
-                / 3.0;
-            // The normal force the target supplies: the part of the (predicted) gradient it
-            // takes. Held at a stop (P = 0), the vertex does not slide: no friction.
-            let held = p == Matrix3::zeros();
-            let predicted = self.sliders.slide_forces.predicted[k];
-            // With no prediction yet (a step's first iteration), the gradient, unless the
-            // node is stiffly held by its neighbours: then its normal part is mostly their
-            // imbalance at the first guess (a swinging strand's root: 1.84 N where the strand
-            // weighs 0.04 N) and the first iteration of an iterated step runs without
-            // friction.
-            let stiff = |s: &Self| match mode {
-                Mode::Dynamic { h } => {
-                    s.sliders.slide_scale[k] > STIFF_NODE * s.node_mass(sys, v) / (h * h)
-                }
-                Mode::Static => false,
-            };
-            self.sliders.slide_normal[k] = match predicted {
-                _ if held => 0.0,
-                Some(f) => (f - p * f).norm(),
-                None if sl.friction > 0.0
-                    && self.sliders.slide_forces.free_first
-                    && stiff(self) =>
-                {
-                    self.sliders.slide_forces.frictionless = true;
-                    0.0
-                }
-                None => (g - p * g).norm(),
-            };
-            // Friction's change from the last iteration's normal force, held sliders included
-            // (their friction switching off is a change too).
-            if let (Mode::Dynamic { h }, true) = (mode, sl.friction > 0.0) {
-                let d = sl.friction
-                    * (self.sliders.slide_normal[k] - self.sliders.slide_forces.used[k]).abs()
-                    * h
-                    / self.node_mass(sys, v);
-                let c = &mut self.sliders.slide_forces.change;
-                *c = if d.is_nan() || c.is_nan() {
-                    f64::NAN
-                } else {
-                    c.max(d)
-                };
-            }
-            let (Mode::Dynamic { h }, true) = (mode, sl.friction > 0.0 && !held) else {
-                continue;
-            };
-            // μ N f₀(|u|), u = P (x − x⁰): gradient μN f₁/y u; Hessian
-            // μN [f₁/y (P − û ûᵀ) + f₁′ û ûᵀ], both terms PSD (f₁′ = 0 beyond ε).
-            let mu_n = sl.friction * self.sliders.slide_normal[k];
-            let eps = FRICTION_EPS_V * h;
-            let at0 = self.slider_node(sys, x0, v).map_or(at, |(_, q)| q);
-            let u = p * (at - at0);
-            let y = u.norm();
-            let (grad, hess) = if y == 0.0 {
-                (Vector3::zeros(), 2.0 / eps * p)
-            } else {
-                let (_, f1) = friction_f0_f1(y, eps);
-                let df1 = if y < eps {
-                    2.0 / eps * (1.0 - y / eps)
-                } else {
-                    0.0
-                };
-                let uh = u / y;
-                let uu = uh * uh.transpose();
-                (f1 / y * u, f1 / y * (p - uu) + df1 * uu)
-            };
-            for c in 0..3 {
-                self.work.grad[3 * f + c] += mu_n * grad[c];
-            }
-            let block = self.lin.block_mut(f, self.lin.diag_slot[f] as usize);
-            for (v, h) in block.iter_mut().zip(hess.as_slice()) {
-                *v += mu_n * h;
-            }
+        self.sliders.slide_forces.reset(sys.sliders.len());
+        for k in 0..sys.sliders.len() {
+            self.slider_terms(sys, x, x0, mode, k);
         }
+        self.project_slider_blocks();
+        self.project_slider_gradients(sys, x);
+    }
+
+    /// Slider `k`'s projector P and diagonal scale at `x`, the normal force its friction
+    /// reads, and in dynamic steps friction's gradient and Hessian added to its node's.
+    fn slider_terms(
+        &mut self,
+        sys: &SolidSystem,
+        x: &[Vector3<f64>],
+        x0: &[Vector3<f64>],
+        mode: Mode,
+        k: usize,
+    ) {
+        let sl = &sys.sliders[k];
+        let dynamic = matches!(mode, Mode::Dynamic { .. });
+        let v = sl.vertex as usize;
+        let from = self.sliders.slide_forces.column.len();
+        self.sliders.slide_forces.start[k + 1] = from;
+        let Some((f, at)) = self.slider_node(sys, x, v) else {
+            return;
+        };
+        let g = Vector3::new(
+            self.work.grad[3 * f],
+            self.work.grad[3 * f + 1],
+            self.work.grad[3 * f + 2],
+        );
+        if dynamic && sl.friction > 0.0 {
+            self.keep_column(k, f, g);
+        }
+        // The force on the node (the model's where it has one): whether it pushes past a
+        // stop is the sign of the constraint's multiplier.
+        let force = self.sliders.slide_forces.predicted[k].unwrap_or(g);
+        let p = match place(&sys.rails, &sys.surfaces, sl.on, &at) {
+            Some(pl) => projector(&pl, &force),
+            None => Matrix3::zeros(),
+        };
+        self.sliders.slide_proj[k] = p;
+        self.sliders.slide_scale[k] = (0..3)
+            .map(|c| self.lin.values[self.lin.diagonal_entry(f, c)])
+            .sum::<f64>()
+            / 3.0;
+        // The normal force the target supplies: the part of the (predicted) gradient it
+        // takes. Held at a stop (P = 0), the vertex does not slide: no friction.
+        let held = p == Matrix3::zeros();
+        let predicted = self.sliders.slide_forces.predicted[k];
+        // With no prediction yet (a step's first iteration), the gradient, unless the
+        // node is stiffly held by its neighbours: then its normal part is mostly their
+        // imbalance at the first guess (a swinging strand's root: 1.84 N where the strand
+        // weighs 0.04 N) and the first iteration of an iterated step runs without
+        // friction.
+        let stiff = |s: &Self| match mode {
+            Mode::Dynamic { h } => {
+                s.sliders.slide_scale[k] > STIFF_NODE * s.node_mass(sys, v) / (h * h)
+            }
+            Mode::Static => false,
+        };
+        self.sliders.slide_normal[k] = match predicted {
+            _ if held => 0.0,
+            Some(f) => (f - p * f).norm(),
+            None if sl.friction > 0.0 && self.sliders.slide_forces.free_first && stiff(self) => {
+                self.sliders.slide_forces.frictionless = true;
+                0.0
+            }
+            None => (g - p * g).norm(),
+        };
+        // Friction's change from the last iteration's normal force, held sliders included
+        // (their friction switching off is a change too).
+        if let (Mode::Dynamic { h }, true) = (mode, sl.friction > 0.0) {
+            let d = sl.friction
+                * (self.sliders.slide_normal[k] - self.sliders.slide_forces.used[k]).abs()
+                * h
+                / self.node_mass(sys, v);
+            let c = &mut self.sliders.slide_forces.change;
+            *c = if d.is_nan() || c.is_nan() {
+                f64::NAN
+            } else {
+                c.max(d)
+            };
+        }
+        if let (Mode::Dynamic { h }, true) = (mode, sl.friction > 0.0 && !held) {
+            let at0 = self.slider_node(sys, x0, v).map_or(at, |(_, q)| q);
+            let mu_n = sl.friction * self.sliders.slide_normal[k];
+            self.add_slide_friction(f, mu_n, p * (at - at0), p, FRICTION_EPS_V * h);
+        }
+    }
+
+    /// μ N f₀(|u|), u = P (x − x⁰) the slide since x⁰ (`mu_n` = μ N): gradient μN f₁/y u;
+    /// Hessian μN [f₁/y (P − û ûᵀ) + f₁′ û ûᵀ], both terms PSD (f₁′ = 0 beyond ε), added
+    /// to node `f`'s.
+    fn add_slide_friction(
+        &mut self,
+        f: usize,
+        mu_n: f64,
+        u: Vector3<f64>,
+        p: Matrix3<f64>,
+        eps: f64,
+    ) {
+        let y = u.norm();
+        let (grad, hess) = if y == 0.0 {
+            (Vector3::zeros(), 2.0 / eps * p)
+        } else {
+            let (_, f1) = friction_f0_f1(y, eps);
+            let df1 = if y < eps {
+                2.0 / eps * (1.0 - y / eps)
+            } else {
+                0.0
+            };
+            let uh = u / y;
+            let uu = uh * uh.transpose();
+            (f1 / y * u, f1 / y * (p - uu) + df1 * uu)
+        };
+        for c in 0..3 {
+            self.work.grad[3 * f + c] += mu_n * grad[c];
+        }
+        let block = self.lin.block_mut(f, self.lin.diag_slot[f] as usize);
+        for (v, h) in block.iter_mut().zip(hess.as_slice()) {
+            *v += mu_n * h;
+        }
+    }
+
+    /// Every block in a sliding node's row or column multiplied by its projector
+    /// (Pₐ B P_b).
+    fn project_slider_blocks(&mut self) {
         let proj = |s: &Self, f: usize| {
             let k = s.sliders.slide_of[f];
             (k != NONE).then(|| s.sliders.slide_proj[k as usize])
@@ -496,6 +530,10 @@ impl Integrator {
                 block.copy_from_slice(b.as_slice());
             }
         }
+    }
+
+    /// Each sliding node's gradient projected, and s (I − P) added to its diagonal block.
+    fn project_slider_gradients(&mut self, sys: &SolidSystem, x: &[Vector3<f64>]) {
         for (k, sl) in sys.sliders.iter().enumerate() {
             let Some((f, _)) = self.slider_node(sys, x, sl.vertex as usize) else {
                 continue;

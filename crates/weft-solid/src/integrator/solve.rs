@@ -4,11 +4,12 @@
 //! faer's own solve hands every supernode to its general dense kernels (a triangular solve
 //! and a matrix product, each dispatched through its SIMD layer, with the product gathered in
 //! a scratch matrix). A hair factor has thousands of supernodes of 3 to a dozen columns with
-//! a few rows below them, where that dispatch costs more than the arithmetic: measured on
-//! hair_on_head, whose contact step's ADMM solves ~38k times a run, faer's solves took 1.12 s
-//! and these 0.63 s. Cloth factors have wide separators where faer's kernels pay (these loops
-//! made cloth_pile's solves 0.86 → 1.22 s), so the integrator takes this solve only for
-//! factors whose every supernode is [`narrow`].
+//! a few rows below them, where that dispatch costs more than the arithmetic: on
+//! hair_on_head, whose contact step's ADMM solves tens of thousands of times a run, these
+//! loops are markedly faster than faer's solves. Cloth factors have wide separators where
+//! faer's kernels pay (these loops make cloth_pile's solves slower), so the integrator
+//! takes this solve only for factors whose every supernode is [`narrow`]. The contact
+//! examples' `--stats-json` measure it; figures in docs/history/issue-71-comments.md.
 //!
 //! The factor's layout (faer 0.24, `SupernodalLltRef::supernode`): supernode s spans columns
 //! `begin[s]..end[s]` (w of them); its values, from `col_ptr_for_val[s]`, are a column-major

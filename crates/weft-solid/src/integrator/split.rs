@@ -52,8 +52,8 @@ struct Half {
     /// The solve's vector in this half's order.
     x: Vec<f64>,
     /// The own solve's scratch where every supernode is narrow (hair-like), else `None`:
-    /// faer's solve, as for the whole system (`solve.rs`; on cloth_drape's contact solves
-    /// 1.73 → 1.40 s).
+    /// faer's solve, as for the whole system (`solve.rs`: faer's kernels pay on cloth, as
+    /// cloth_drape's contact solves show; figures in docs/history/issue-71-comments.md).
     narrow_tmp: Option<Vec<f64>>,
     /// The trailing block L of the factor (dense, column-major, lower).
     tail: Vec<f64>,
@@ -67,8 +67,9 @@ struct HalfSingle {
     l_values: Vec<f32>,
     x: Vec<f32>,
     /// L Lᵀ of this half's trailing block (its lower triangle), computed as soon as the half
-    /// is factored, concurrently with the other half's: the separator's products were
-    /// 0.19–0.31 s of a 1.5–2.2 s factorization at 317², run after both halves.
+    /// is factored, concurrently with the other half's: run after both halves, the
+    /// separator's products are a sizeable share of a large factorization (`weft bench
+    /// solid` at 317² measures it; figures in docs/history/issue-71-comments.md).
     gram: Vec<f64>,
 }
 
@@ -371,7 +372,7 @@ impl Split {
             o.extend(&sep_vertices);
             o
         };
-        // The halves' analyses are independent: concurrently (0.4 s each at 317²).
+        // The halves' analyses are independent: concurrently (each is costly on large sheets).
         let (a, b) = rayon::join(
             || Analysis::new(&half_order(0), col_ptr, row_idx),
             || Analysis::new(&half_order(1), col_ptr, row_idx),
@@ -539,9 +540,10 @@ impl Split {
     }
 
     /// b ← K⁻¹ b with the last factorization (`b` in the whole system's DOF order). The
-    /// halves' triangular solves run concurrently, as their factorizations do (at 24² they
-    /// are 80 % of the solve: one after the other, the split's solve took 1.8× the whole
-    /// factor's).
+    /// halves' triangular solves run concurrently, as their factorizations do: they are
+    /// most of the solve, and one after the other the split's solve would be slower than
+    /// the whole factor's (`weft bench solid` measures it; figures in
+    /// docs/history/issue-71-comments.md).
     pub(super) fn solve_in_place(&mut self, b: &mut [f64]) {
         let m = self.sep.len();
         // Forward through each half with the separator's entries zero.
@@ -552,8 +554,8 @@ impl Split {
         for (x, &d) in self.xs.iter_mut().zip(&self.sep) {
             *x = b[d];
         }
-        // faer's dense kernels: at 24² (m = 144) these were a quarter of the split's solve as
-        // plain loops.
+        // faer's dense kernels: as plain loops these products are a sizeable share of the
+        // split's solve even at small separators (figures in docs/history/issue-71-comments.md).
         for h in &self.halves {
             let l = MatRef::from_column_major_slice(&h.tail, m, m);
             let t = MatRef::from_column_major_slice(&h.x[h.own..], m, 1);

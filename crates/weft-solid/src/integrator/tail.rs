@@ -5,23 +5,24 @@
 //! compressed: its membranes keep at most `CONTACT_CURVATURE` of the inertia as negative
 //! curvature, so that ADMM sees a convex model. Along a mode whose true curvature is below
 //! the model's, each full step covers the same fraction 1 − r of the distance left, and the
-//! steps form a geometric series: measured on cloth_drape's contact steps, tails of 20–40
-//! iterations whose successive steps are parallel (cosine 1.000 to three digits) with a
-//! ratio r of 0.81–0.92 that holds to 0.01. The distance left after a step d is then
+//! steps form a geometric series: traced on cloth_drape's contact steps, tails of tens of
+//! iterations whose successive steps are parallel to three digits, at a ratio r below 1
+//! that holds from step to step (figures in docs/history/issue-71-comments.md). The
+//! distance left after a step d is then
 //! d r/(1 − r), so once two successive ratios agree the step is tried at 1/(1 − r) its
 //! length (the sum of the series), and the line search judges it like any other: a step
 //! that does not decrease the objective enough is halved, down to the plain full step.
-//! Measured (24 frames, Newton iterations a step): cloth_drape 12.58 → 10.55, cloth_pile
-//! 10.59 → 10.28 (mean of 8 rounding-level perturbations).
+//! It cuts cloth_drape's and cloth_pile's Newton iterations a step (the examples'
+//! `--stats-json` and `bench/ensemble.py` measure it).
 //!
-//! Where a fold snaps through, the series grows instead: parallel full steps each 1.03–4×
-//! the last for up to nine iterations (cloth_pile, traced), the bounded model underrating
-//! how far the unstable shape goes. Once two successive ratios are ≥ 1 the step is tried at
-//! MAX_STRETCH its length (the ratios speed up, so no sum predicts the end; the line search
-//! halves it back where the fold ends sooner). Measured (24 frames, Newton iterations a
-//! step): cloth_drape 9.08 → 8.27, cloth_pile 8.28 → 7.78, each within about 30 % of its
-//! distance before from its run at a hundredth of the tolerance; 4 steps ahead
-//! (1 + r + r² + r³) 8.76 and 8.26 (BENCHMARKS.md, thirty-fifth session).
+//! Where a fold snaps through, the series grows instead: parallel full steps each longer
+//! than the last for several iterations (traced on cloth_pile), the bounded model
+//! underrating how far the unstable shape goes. Once two successive ratios are ≥ 1 the step
+//! is tried at MAX_STRETCH its length (the ratios speed up, so no sum predicts the end; the
+//! line search halves it back where the fold ends sooner). That cuts cloth_drape's and
+//! cloth_pile's iterations again, each ending about as near its run at a hundredth of the
+//! tolerance as without it; a few steps ahead (1 + r + r² + r³) gains less (figures in
+//! docs/history/issue-71-comments.md).
 //!
 //! The contact step bounds the stretch so no point moves more than half the smallest
 //! contact distance beyond the full step (rigid groups' members bounded by their arcs), and
@@ -29,16 +30,17 @@
 //! long tails are crawls, not this series, and stretching them let strands pass through
 //! strands).
 
-/// Successive steps this parallel (cosine) count as one mode's series (at 0.999, with ratios
-/// agreeing to 0.01 and no halving, the tails were found only at their ends: cloth_drape
-/// 12.32 against 10.55).
+/// Successive steps this parallel (cosine) count as one mode's series (stricter, at 0.999
+/// with ratios agreeing to 0.01 and no halving, the tails are found only at their ends and
+/// most of the gain is lost; figures in docs/history/issue-71-comments.md).
 const PARALLEL: f64 = 0.99;
 /// Two successive ratios agreeing to within this make a geometric series.
 const RATIO_AGREES: f64 = 0.05;
 /// The longest extrapolation, as a multiple of the step (the sum at r = 0.95; closer to 1
 /// the steps crawl rather than converge, and the line search halves it towards 1), and a
-/// growing series' (measured on cloth_pile: 8 and 16 steps ahead uncapped 7.97 and 7.95
-/// Newton iterations a step, 20× the step 7.78).
+/// growing series' (on cloth_pile 20× the step takes fewer Newton iterations than the
+/// growing series taken 8 or 16 steps ahead uncapped; figures in
+/// docs/history/issue-71-comments.md).
 const MAX_STRETCH: f64 = 20.0;
 
 /// The last full steps of a Newton loop, to recognize a geometric tail. Sized once per

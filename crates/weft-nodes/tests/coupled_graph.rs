@@ -4,7 +4,7 @@
 
 mod common;
 use common::*;
-use weft::graph::Context;
+use weft_graph::Context;
 
 /// A hanging strand, stepped by the given solver node.
 fn strand_graph(solver: &str, extra: &str) -> String {
@@ -36,7 +36,7 @@ fn strand_graph(solver: &str, extra: &str) -> String {
     )
 }
 
-fn tip(g: &mut weft::graph::Graph, frame: i64) -> [f64; 3] {
+fn tip(g: &mut weft_graph::Graph, frame: i64) -> [f64; 3] {
     *g.pull("tip", Context::new(frame))
         .unwrap_or_else(|e| panic!("{e}"))
         .get::<[f64; 3]>()
@@ -180,7 +180,7 @@ fn viscosity_is_an_option_of_the_predict_stage() {
     let mut a = graph(&text);
     let mut b = graph(&viscous);
     let (ta, tb) = (tip(&mut a, 3), tip(&mut b, 3));
-    let its = |g: &weft::graph::Graph| {
+    let its = |g: &weft_graph::Graph| {
         let report = g.node_report("solve").expect("solve report");
         let predict = report["inner"]
             .as_array()

@@ -4,7 +4,7 @@
 
 mod common;
 use common::*;
-use weft::graph::Graph;
+use weft_graph::Graph;
 
 /// A vertical strand of 10 segments hanging from its top vertex, solved statically; its
 /// last three vertices either a rigid group with 0.01 kg added (`rigid`), or free with the
@@ -130,7 +130,7 @@ fn bdf2_with_a_rigid_group_is_refused_with_a_reason() {
                   "params": {"integrator": "bdf2"}}"#;
     let mut g = graph(&file(nodes, r#""scene": "solve.scene""#));
     let e = g
-        .pull("scene", weft::graph::Context::new(1))
+        .pull("scene", weft_graph::Context::new(1))
         .unwrap_err()
         .to_string();
     assert!(

@@ -3,8 +3,8 @@
 
 mod common;
 use common::*;
-use weft::graph::{Context, Graph};
-use weft::nodes::physics::Scene;
+use weft_graph::{Context, Graph};
+use weft_nodes::physics::Scene;
 
 fn cloth_with(integrator: &str) -> Graph {
     graph(&file(

@@ -4,7 +4,7 @@
 
 mod common;
 use common::*;
-use weft::graph::{Context, Graph};
+use weft_graph::{Context, Graph};
 
 /// Distance from `p` to the polyline `points`.
 fn to_polyline(p: [f64; 3], points: &[[f64; 3]]) -> f64 {

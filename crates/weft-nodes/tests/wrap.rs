@@ -47,7 +47,7 @@ fn a_finer_render_mesh_follows_the_simulated_cloth() {
         let m = vec3_at(&mut g, "mid", frame);
         let want = [0, 1, 2].map(|k| 0.5 * (a[k] + b[k]));
         assert!(dist(m, want) < 1e-12, "frame {frame}: {m:?} vs {want:?}");
-        g.pull("obj", weft::graph::Context::new(frame)).unwrap();
+        g.pull("obj", weft_graph::Context::new(frame)).unwrap();
         assert!(obj.join(format!("render.{frame:04}.obj")).exists());
     }
     // The cloth fell: the wrap is not the rest pose.
@@ -63,7 +63,7 @@ fn a_wrap_without_its_proxy_or_under_a_taken_name_is_a_clear_error() {
         "ok": {"type": "scene.wrap", "inputs": {"scene": "scene.scene", "render": "grid.mesh"}, "params": {"name": "cloth"}}"#;
     let mut g = graph(&file(nodes, r#""wrap": "wrap.scene", "ok": "ok.scene""#));
     let e = g
-        .pull("wrap", weft::graph::Context::new(0))
+        .pull("wrap", weft_graph::Context::new(0))
         .unwrap_err()
         .to_string();
     assert!(
@@ -71,7 +71,7 @@ fn a_wrap_without_its_proxy_or_under_a_taken_name_is_a_clear_error() {
         "{e}"
     );
     let e = g
-        .pull("ok", weft::graph::Context::new(0))
+        .pull("ok", weft_graph::Context::new(0))
         .unwrap_err()
         .to_string();
     assert!(e.contains("already has an element 'cloth'"), "{e}");

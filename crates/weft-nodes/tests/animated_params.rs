@@ -4,7 +4,7 @@
 
 mod common;
 use common::*;
-use weft::graph::{Context, Graph};
+use weft_graph::{Context, Graph};
 
 /// y' = −k(t) y from y(0) = 1 by ode.decay's exact step (exact for a rate constant over each
 /// frame: the rate at frame f holds over the step to it), k keyed by `keys`.

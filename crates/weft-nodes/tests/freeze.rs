@@ -5,7 +5,7 @@
 
 mod common;
 use common::*;
-use weft::graph::Graph;
+use weft_graph::Graph;
 
 /// The input's x offset at frame f: 0.2 sin(2π · 0.5 Hz · f/24) (xform.animate).
 fn input_offset(f: i64) -> f64 {
@@ -216,7 +216,7 @@ fn bad_freeze_input_is_a_clear_error_naming_the_node() {
         r#"{"type": "value.float", "params": {"value": -0.5}}"#,
         solid(),
     );
-    let e = match g.pull("sim", weft::graph::Context::new(1)) {
+    let e = match g.pull("sim", weft_graph::Context::new(1)) {
         Ok(_) => panic!("a negative weight was taken"),
         Err(e) => e.to_string(),
     };
@@ -264,7 +264,7 @@ fn bad_freeze_input_is_a_clear_error_naming_the_node() {
         r#""scene": "solve.scene""#,
     );
     let mut g = graph(&text);
-    let e = match g.pull("scene", weft::graph::Context::new(1)) {
+    let e = match g.pull("scene", weft_graph::Context::new(1)) {
         Ok(_) => panic!("a vertex frozen and held was taken"),
         Err(e) => e.to_string(),
     };

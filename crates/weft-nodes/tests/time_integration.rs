@@ -4,7 +4,7 @@
 
 mod common;
 use common::*;
-use weft::graph::{Context, Graph};
+use weft_graph::{Context, Graph};
 
 /// A 1 m pendulum released 0.3 rad from the vertical: a line density of 2 kg/m lumps 1 kg on
 /// each end, the rod's stretch stiffness E·πr² = 1e6 N/m (stretch ~1e-5 m under the swing,
