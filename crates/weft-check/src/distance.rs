@@ -2,40 +2,38 @@
 //! things come: point to triangle, point to segment, and the least of a convex function along
 //! a segment (which turns either into a segment's distance).
 
+use nalgebra::Vector3;
+
+type V = Vector3<f64>;
+
 /// The exact distance from p to triangle `t`, computed without the solver's code: the
 /// projection onto the plane when it falls inside (by edge half-planes), else the nearest of
 /// the three edges as clamped segments.
 pub fn distance_to_triangle(p: [f64; 3], t: [[f64; 3]; 3]) -> f64 {
-    let n = cross(sub(t[1], t[0]), sub(t[2], t[0]));
-    let nn = dot(n, n).sqrt();
-    let n = [n[0] / nn, n[1] / nn, n[2] / nn];
-    let h = dot(sub(p, t[0]), n);
-    let q = [p[0] - h * n[0], p[1] - h * n[1], p[2] - h * n[2]];
-    let inside = (0..3).all(|k| dot(cross(sub(t[(k + 1) % 3], t[k]), sub(q, t[k])), n) >= 0.0);
+    let (p, t) = (V::from(p), t.map(V::from));
+    let n = (t[1] - t[0]).cross(&(t[2] - t[0])).normalize();
+    let h = (p - t[0]).dot(&n);
+    let q = p - h * n;
+    let inside = (0..3).all(|k| (t[(k + 1) % 3] - t[k]).cross(&(q - t[k])).dot(&n) >= 0.0);
     if inside {
         return h.abs();
     }
     (0..3)
-        .map(|k| {
-            let (a, b) = (t[k], t[(k + 1) % 3]);
-            let ab = sub(b, a);
-            let s = (dot(sub(p, a), ab) / dot(ab, ab)).clamp(0.0, 1.0);
-            let c = [a[0] + s * ab[0], a[1] + s * ab[1], a[2] + s * ab[2]];
-            dot(sub(p, c), sub(p, c)).sqrt()
-        })
+        .map(|k| distance_to_segment(p.into(), t[k].into(), t[(k + 1) % 3].into()))
         .fold(f64::INFINITY, f64::min)
 }
 
 /// The exact distance from p to segment a→b (the clamped projection).
 pub fn distance_to_segment(p: [f64; 3], a: [f64; 3], b: [f64; 3]) -> f64 {
-    let (ab, ap) = (sub(b, a), sub(p, a));
-    let l2 = ab.iter().map(|x| x * x).sum::<f64>();
+    let (p, a, b) = (V::from(p), V::from(a), V::from(b));
+    let ab = b - a;
+    let l2 = ab.norm_squared();
     let s = if l2 > 0.0 {
-        (ab.iter().zip(&ap).map(|(x, y)| x * y).sum::<f64>() / l2).clamp(0.0, 1.0)
+        ((p - a).dot(&ab) / l2).clamp(0.0, 1.0)
     } else {
         0.0
     };
-    norm(sub(p, along(a, b, s)))
+    (p - (a + s * ab)).norm()
 }
 
 /// The least of `f` over segment a→b, for `f` convex along it (the distance to a convex
@@ -60,29 +58,9 @@ pub fn along(a: [f64; 3], b: [f64; 3], s: f64) -> [f64; 3] {
     [0, 1, 2].map(|k| a[k] + s * (b[k] - a[k]))
 }
 
-/// b − a's length.
+/// The distance from a to b.
 pub fn length(a: [f64; 3], b: [f64; 3]) -> f64 {
-    norm(sub(b, a))
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn norm(a: [f64; 3]) -> f64 {
-    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
+    (V::from(b) - V::from(a)).norm()
 }
 
 #[cfg(test)]

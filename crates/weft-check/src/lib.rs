@@ -1,6 +1,7 @@
 //! Independent checks for Weft's tests: whether a segment meets a triangle, how many pairs
 //! of triangles intersect, exact point–triangle and point–segment distances ([`distance`]),
-//! and the graph-file text of vertex probes, on plain coordinates. Written apart from the solver's
+//! whether two runs' positions are bit-identical, and the graph-file text of vertex probes,
+//! on plain coordinates. Written apart from the solver's
 //! geometry (`weft-sim`'s detection, `weft-solid`'s contacts) so that a test's verdict of
 //! "no intersection" owes nothing to the code it checks; the graph-level tests (`tests/`)
 //! and the solver's own (`weft-sim/tests`) use the same one.
@@ -96,6 +97,17 @@ pub fn vertex_probes(scene: &str, element: &str, count: usize) -> (String, Strin
         .map(|i| format!(r#""v{i}": "v{i}.position""#))
         .collect();
     (nodes.join(",\n"), outputs.join(", "))
+}
+
+/// True when two runs' positions are the same to the bit (determinism across thread counts:
+/// not close, identical).
+pub fn bit_identical(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> bool {
+    a.len() == b.len()
+        && a.iter().zip(b).all(|(p, q)| {
+            p.iter()
+                .zip(q.iter())
+                .all(|(x, y)| x.to_bits() == y.to_bits())
+        })
 }
 
 #[cfg(test)]

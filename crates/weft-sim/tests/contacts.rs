@@ -81,12 +81,10 @@ fn contacts_are_bit_identical_on_one_and_two_threads() {
     let (one, touched) = run(1);
     assert!(touched > 0, "the cloth reached the ball");
     let (two, _) = run(2);
-    let same = one.iter().zip(&two).all(|(a, b)| {
-        a.iter()
-            .zip(b.iter())
-            .all(|(x, y)| x.to_bits() == y.to_bits())
-    });
-    assert!(same, "2 threads differ from 1");
+    assert!(
+        weft_check::bit_identical(&one, &two),
+        "2 threads differ from 1"
+    );
 }
 
 /// Without a collision element nothing is built (and the tree's Collision Behavior says

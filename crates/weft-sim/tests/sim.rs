@@ -524,11 +524,7 @@ fn a_cloth_gives_identical_bits_on_one_two_and_three_threads() {
     assert!(one.iter().all(|p| p.iter().all(|c| c.is_finite())));
     for threads in [2, 3] {
         let other = run(threads);
-        let same = one.iter().zip(&other).all(|(a, b)| {
-            a.iter()
-                .zip(b.iter())
-                .all(|(x, y)| x.to_bits() == y.to_bits())
-        });
+        let same = weft_check::bit_identical(&one, &other);
         assert!(same, "{threads} threads differ from 1");
     }
 }

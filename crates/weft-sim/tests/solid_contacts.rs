@@ -182,12 +182,10 @@ fn sheets_folding_over_an_edge_never_intersect_on_one_and_two_threads() {
     let (one, contacts) = run(1);
     assert!(contacts > 0, "the sheets touched");
     let (two, _) = run(2);
-    let same = one.iter().zip(&two).all(|(a, b)| {
-        a.iter()
-            .zip(b.iter())
-            .all(|(x, y)| x.to_bits() == y.to_bits())
-    });
-    assert!(same, "2 threads differ from 1");
+    assert!(
+        weft_check::bit_identical(&one, &two),
+        "2 threads differ from 1"
+    );
 }
 
 /// A sheet thrown at 10 m/s onto another lying on a box, one step per frame at 24 fps (0.42

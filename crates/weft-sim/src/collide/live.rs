@@ -52,8 +52,13 @@ impl Live {
         c.triangles[t as usize].map(|v| self.local[v as usize])
     }
 
+    /// The collider's transform a fraction `s` through the step (translation linearly,
+    /// rotation by slerp, as the stepper moves pins), or whichever end is given.
     pub(super) fn at(&self, s: f64) -> Option<Transform> {
-        crate::build::lerp(self.from, self.to, s)
+        match (self.from, self.to) {
+            (Some(a), Some(b)) => Some(a.lerp_slerp(&b, s)),
+            (a, b) => b.or(a),
+        }
     }
 }
 

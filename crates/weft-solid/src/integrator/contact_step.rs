@@ -446,15 +446,7 @@ mod tests {
 
     /// A step's contacts with no warm start, no guess and σ from 1.
     fn cold(contacts: &[Contact], max_admm: usize) -> ContactSet<'_> {
-        ContactSet {
-            contacts,
-            max_admm,
-            warm: &[],
-            guess: None,
-            sigma: 0.0,
-            give_up: false,
-            reach: f64::INFINITY,
-        }
+        ContactSet::new(contacts, max_admm)
     }
 
     /// A direction with a NaN entry has a NaN size (not its finite entries' largest), so the
@@ -508,15 +500,7 @@ mod tests {
                     None,
                     0.01,
                     &settings,
-                    ContactSet {
-                        contacts: if with_ghost { &two } else { &two[..1] },
-                        max_admm: 200,
-                        warm: &[],
-                        guess: None,
-                        sigma: 0.0,
-                        give_up: false,
-                        reach: f64::INFINITY,
-                    },
+                    ContactSet::new(if with_ghost { &two } else { &two[..1] }, 200),
                 )
                 .unwrap();
             assert!(cs.max_residual < 1e-9, "{}", cs.max_residual);
@@ -570,13 +554,8 @@ mod tests {
             settings.tolerance = 1e-6;
             settings.max_iterations = 60;
             let set = ContactSet {
-                contacts: &contacts,
-                max_admm: 50,
-                warm: &[],
-                guess: None,
-                sigma: 0.0,
                 give_up,
-                reach: f64::INFINITY,
+                ..ContactSet::new(&contacts, 50)
             };
             match integ.step_contacts(&sys, &mut s, None, 0.01, &settings, set) {
                 Err(StepError::ContactsNotConverged { iterations, .. }) => iterations,
@@ -614,22 +593,7 @@ mod tests {
                     continue;
                 }
                 integ
-                    .step_contacts(
-                        &sys,
-                        &mut s,
-                        None,
-                        h,
-                        &settings,
-                        ContactSet {
-                            contacts: &[c],
-                            max_admm: 200,
-                            warm: &[],
-                            guess: None,
-                            sigma: 0.0,
-                            give_up: false,
-                            reach: f64::INFINITY,
-                        },
-                    )
+                    .step_contacts(&sys, &mut s, None, h, &settings, ContactSet::new(&[c], 200))
                     .unwrap();
             }
             s.x[0].y
@@ -681,15 +645,8 @@ mod tests {
                     friction: 1.0,
                     ..Contact::points(&[(0, 1.0 - w), (1, w)])
                 };
-                let set = ContactSet {
-                    contacts: &[c],
-                    max_admm: 500,
-                    warm: &[],
-                    guess: None,
-                    sigma: 0.0,
-                    give_up: false,
-                    reach: f64::INFINITY,
-                };
+                let cs = [c];
+                let set = ContactSet::new(&cs, 500);
                 let (_, cs) = integ
                     .step_contacts(&sys, &mut s, None, h, &settings, set)
                     .unwrap();
@@ -715,15 +672,8 @@ mod tests {
             friction: 1.0,
             ..Contact::points(&[(0, 0.5), (1, 0.5)])
         };
-        let set = ContactSet {
-            contacts: &[c],
-            max_admm: 500,
-            warm: &[],
-            guess: None,
-            sigma: 0.0,
-            give_up: false,
-            reach: f64::INFINITY,
-        };
+        let cs = [c];
+        let set = ContactSet::new(&cs, 500);
         let (_, cs) = integ
             .step_contacts(&sys, &mut s, None, h, &settings, set)
             .unwrap();
@@ -759,15 +709,8 @@ mod tests {
                 frame,
                 ..Contact::points(&[(1, 1.0), (0, -1.0)])
             };
-            let set = ContactSet {
-                contacts: &[c],
-                max_admm: 1000,
-                warm: &[],
-                guess: None,
-                sigma: 0.0,
-                give_up: false,
-                reach: f64::INFINITY,
-            };
+            let cs = [c];
+            let set = ContactSet::new(&cs, 1000);
             integ
                 .step_contacts(&sys, &mut s, None, h, &settings, set)
                 .unwrap();
@@ -799,15 +742,8 @@ mod tests {
             friction: 0.5,
             ..Contact::points(&[(0, 1.0), (1, -b[0]), (2, -b[1]), (3, -b[2])])
         };
-        let set = ContactSet {
-            contacts: &[c],
-            max_admm: 2000,
-            warm: &[],
-            guess: None,
-            sigma: 0.0,
-            give_up: false,
-            reach: f64::INFINITY,
-        };
+        let cs = [c];
+        let set = ContactSet::new(&cs, 2000);
         let (_, cs) = integ
             .step_contacts(&sys, &mut s, None, h, &settings, set)
             .unwrap();

@@ -139,6 +139,23 @@ pub struct ContactSet<'a> {
     pub reach: f64,
 }
 
+impl<'a> ContactSet<'a> {
+    /// `contacts` solved from a cold start (no warm impulses, no guess, σ = 1), every
+    /// iteration allowed spent, no extrapolation bound: the plain problem, which a caller
+    /// with history changes field by field.
+    pub fn new(contacts: &'a [Contact], max_admm: usize) -> Self {
+        ContactSet {
+            contacts,
+            max_admm,
+            warm: &[],
+            guess: None,
+            sigma: 0.0,
+            give_up: false,
+            reach: f64::INFINITY,
+        }
+    }
+}
+
 /// Newton iterations in a row with steps below the tolerance and ADMM not converged after
 /// which a solve that may give up ([`ContactSet::give_up`]) does. Such a solve has nothing
 /// left for Newton to move while ADMM stays off the laws each time (contacts that
