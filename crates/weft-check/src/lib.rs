@@ -1,6 +1,6 @@
 //! Independent checks for Weft's tests: whether a segment meets a triangle, how many pairs
 //! of triangles intersect, exact point–triangle and point–segment distances ([`distance`]),
-//! whether two runs' positions are bit-identical, and the graph-file text of vertex probes,
+//! whether two runs' positions are bit-identical (and a pool of a chosen size to run them on), and the graph-file text of vertex probes,
 //! on plain coordinates. Written apart from the solver's
 //! geometry (`weft-sim`'s detection, `weft-solid`'s contacts) so that a test's verdict of
 //! "no intersection" owes nothing to the code it checks; the graph-level tests (`tests/`)
@@ -108,6 +108,16 @@ pub fn bit_identical(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> bool {
                 .zip(q.iter())
                 .all(|(x, y)| x.to_bits() == y.to_bits())
         })
+}
+
+/// Runs `f` on a fresh rayon pool of `threads` threads: a determinism test compares what
+/// the same work gives at 1 and at 2 (or more) threads.
+pub fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("a thread pool")
+        .install(f)
 }
 
 #[cfg(test)]

@@ -54,11 +54,7 @@ fn contacts_are_bit_identical_on_one_and_two_threads() {
     ];
     let c = Arc::new(compile(&scene, &tree(9.81)).unwrap());
     let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
+        weft_check::on_threads(threads, || {
             let settings = StepperSettings {
                 solver: weft_solid::Settings {
                     tolerance: 1e-4,

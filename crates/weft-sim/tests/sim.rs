@@ -507,11 +507,7 @@ fn a_cloth_gives_identical_bits_on_one_two_and_three_threads() {
     let scene = hanging_cloth(n);
     let c = Arc::new(compile(&scene, &tree()).unwrap());
     let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
+        weft_check::on_threads(threads, || {
             let mut s = SolidStepper::new(c.clone(), StepperSettings::default()).unwrap();
             let mut state = s.initial_state(&scene);
             for f in 1..=2 {

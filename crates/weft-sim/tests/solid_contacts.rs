@@ -47,6 +47,20 @@ fn tree() -> BehaviorTree {
     }
 }
 
+/// Hair with its held ends, gravity and collisions.
+fn hair_tree() -> BehaviorTree {
+    BehaviorTree {
+        behaviors: vec![
+            Arc::new(RodMaterial),
+            Arc::new(AttachmentBehavior),
+            Arc::new(Gravity {
+                acceleration: [0.0, -9.81, 0.0],
+            }),
+            Arc::new(Collision),
+        ],
+    }
+}
+
 /// Pairs of triangles (not sharing a vertex) of the given global triangles that intersect:
 /// an edge of one meets the other, by `weft_check`'s exact test (independent of the solver).
 fn intersecting_pairs(x: &[V], tris: &[[usize; 3]]) -> usize {
@@ -66,32 +80,16 @@ fn global_triangles(scene: &[SceneElement], c: &Compiled) -> Vec<[usize; 3]> {
 }
 
 /// The smallest distance from the vertices of `a` (global indices) to the triangles `tris`,
-/// brute force (written here, independent of the solver).
+/// brute force by `weft_check`'s exact distance (independent of the solver).
 fn closest(x: &[V], verts: std::ops::Range<usize>, tris: &[[usize; 3]]) -> f64 {
     let mut best = f64::INFINITY;
     for v in verts {
         for t in tris {
-            best = best.min(point_triangle(&x[v], &t.map(|k| x[k])));
+            let d = weft_check::distance_to_triangle(x[v].into(), t.map(|k| x[k].into()));
+            best = best.min(d);
         }
     }
     best
-}
-
-/// Distance from p to a triangle: the plane's foot if it falls inside, else the nearest edge.
-fn point_triangle(p: &V, t: &[V; 3]) -> f64 {
-    let n = (t[1] - t[0]).cross(&(t[2] - t[0])).normalize();
-    let h = (p - t[0]).dot(&n);
-    let q = p - h * n;
-    if (0..3).all(|k| (t[(k + 1) % 3] - t[k]).cross(&(q - t[k])).dot(&n) >= 0.0) {
-        return h.abs();
-    }
-    (0..3)
-        .map(|k| {
-            let (a, b) = (t[k], t[(k + 1) % 3]);
-            let s = ((p - a).dot(&(b - a)) / (b - a).norm_squared()).clamp(0.0, 1.0);
-            (p - (a + s * (b - a))).norm()
-        })
-        .fold(f64::INFINITY, f64::min)
 }
 
 fn settings(tolerance: f64, substeps: usize) -> StepperSettings {
@@ -162,11 +160,7 @@ fn sheets_folding_over_an_edge_never_intersect_on_one_and_two_threads() {
     let c = Arc::new(compile(&scene, &tree()).unwrap());
     let tris = global_triangles(&scene, &c);
     let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
+        weft_check::on_threads(threads, || {
             let mut s = SolidStepper::new(c.clone(), settings(1e-4, 1)).unwrap();
             let mut state = s.initial_state(&scene);
             let mut contacts = 0;
@@ -311,16 +305,7 @@ fn a_strand_falls_onto_another_and_hangs_over_it() {
         pins,
         group(false),
     ];
-    let tree = BehaviorTree {
-        behaviors: vec![
-            Arc::new(RodMaterial),
-            Arc::new(AttachmentBehavior),
-            Arc::new(Gravity {
-                acceleration: [0.0, -9.81, 0.0],
-            }),
-            Arc::new(Collision),
-        ],
-    };
+    let tree = hair_tree();
     let c = Arc::new(compile(&scene, &tree).unwrap());
     let (line, hair) = (c.ranges[0].clone().unwrap(), c.ranges[1].clone().unwrap());
     let mut s = SolidStepper::new(c.clone(), settings(1e-6, 1)).unwrap();
@@ -403,16 +388,7 @@ fn a_strand_across_strands_on_a_slope_sticks_by_coulomb() {
             pins,
             group(false),
         ];
-        let tree = BehaviorTree {
-            behaviors: vec![
-                Arc::new(RodMaterial),
-                Arc::new(AttachmentBehavior),
-                Arc::new(Gravity {
-                    acceleration: [0.0, -9.81, 0.0],
-                }),
-                Arc::new(Collision),
-            ],
-        };
+        let tree = hair_tree();
         let c = Arc::new(compile(&scene, &tree).unwrap());
         let strand = c.ranges[1].clone().unwrap();
         let mut s = SolidStepper::new(c.clone(), settings(1e-9, 1)).unwrap();

@@ -78,6 +78,15 @@ pub fn allowed(tol: f64, h: f64, distance: f64) -> f64 {
     tol * h / 0.5 + 1e-3 * distance
 }
 
+/// The mesh of element `name` in `scene` (the test's collider).
+fn mesh_of<'a>(scene: &'a Scene, name: &str) -> &'a weft_scene::Mesh {
+    let c = scene.iter().find(|e| e.name == name).unwrap();
+    let weft_scene::Geometry::Mesh(m) = &*c.geometry else {
+        panic!("'{name}' is a mesh")
+    };
+    m
+}
+
 /// The smallest exact distance from the free vertices of element `member` (skipping the
 /// first `skip` of every `per` vertices: a strand's held roots) to the triangles of the mesh
 /// element `collider`, in `scene`.
@@ -88,10 +97,7 @@ pub fn closest_to_mesh(
     skip: usize,
     collider: &str,
 ) -> f64 {
-    let c = scene.iter().find(|e| e.name == collider).unwrap();
-    let weft_scene::Geometry::Mesh(m) = &*c.geometry else {
-        panic!("'{collider}' is a mesh")
-    };
+    let m = mesh_of(scene, collider);
     let e = scene.iter().find(|e| e.name == member).unwrap();
     let mut closest = f64::INFINITY;
     for (i, p) in e.geometry.positions().iter().enumerate() {
@@ -120,10 +126,7 @@ pub fn closest_segment_to_mesh(
     skip: usize,
     collider: &str,
 ) -> f64 {
-    let c = scene.iter().find(|e| e.name == collider).unwrap();
-    let weft_scene::Geometry::Mesh(m) = &*c.geometry else {
-        panic!("'{collider}' is a mesh")
-    };
+    let m = mesh_of(scene, collider);
     let p = positions_of(scene, member);
     let mut closest = f64::INFINITY;
     for i in 0..p.len() - 1 {
